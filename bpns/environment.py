@@ -1,0 +1,60 @@
+"""The small protocol through which bpns talks to any environment.
+
+bpns never imports a simulator or names a domain: an environment declares its types,
+predicates (and which of them are contact-related, for segmentation), action bounds,
+task distributions and its exact transition function ``simulate``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from bpns.structs import Predicate, State, Task, Type
+
+
+@runtime_checkable
+class Environment(Protocol):
+    """What bpns needs of an environment. ``mj_envs`` implements it on MuJoCo."""
+
+    name: str
+
+    @property
+    def types(self) -> frozenset[Type]: ...
+
+    @property
+    def predicates(self) -> frozenset[Predicate]: ...
+
+    @property
+    def contact_predicates(self) -> frozenset[Predicate]:
+        """Predicates whose truth changes mark skill boundaries (paper §4.1)."""
+        ...
+
+    @property
+    def goal_predicates(self) -> frozenset[Predicate]: ...
+
+    @property
+    def action_low(self) -> np.ndarray: ...
+
+    @property
+    def action_high(self) -> np.ndarray: ...
+
+    def train_tasks(self, n: int, seed: int) -> list[Task]: ...
+
+    def eval_tasks(self, n: int, seed: int) -> list[Task]: ...
+
+    def simulate(self, state: State, action: np.ndarray) -> State:
+        """Exact, deterministic f(x, u): same state and action give a bit-identical state."""
+        ...
+
+    def save_world(self, world: Hashable) -> str:
+        """Serialise a SimState.world handle (e.g. the task's MJCF) for datasets."""
+        ...
+
+    def load_world(self, text: str) -> Hashable: ...
+
+    def state_from_flat(self, world: Hashable, flat: np.ndarray, like: State) -> State:
+        """Rebuild a full State (features included) from a flat simulator state."""
+        ...

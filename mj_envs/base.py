@@ -1,0 +1,186 @@
+"""Generic MuJoCo environment: everything a domain does not have to write itself.
+
+A domain subclass declares its types, predicates (and which are contact-related), how a
+task's scene and objects are sampled, how features are read from the simulation, and
+optionally when the gripper may act. This base class provides the exact transition
+function ``simulate``, task sampling with seeds, state restoration and action checking.
+It implements :class:`bpns.environment.Environment`.
+"""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Hashable, Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from bpns.structs import GroundAtom, Object, Predicate, SimState, State, Task, Type
+from ik import ControllerConfig
+from mj_envs.world import POSE_SLICE, World
+
+
+class InvalidActionError(ValueError):
+    """An action of the wrong shape or with non-finite entries."""
+
+
+@dataclass(frozen=True)
+class TaskLayout:
+    """What a domain's task sampler returns: the scene and the task's symbolic parts."""
+
+    xml: str
+    objects: tuple[Object, ...]
+    goal: frozenset[GroundAtom]
+    horizon: int
+    init_qpos: dict[str, np.ndarray] | None = None  # joint name -> qpos override
+    init_userdata: dict[int, float] | None = None  # domain userdata index -> value
+
+
+class MujocoEnv(abc.ABC):
+    """Base for the Panda-on-a-table domains."""
+
+    name: str = "mujoco"
+    controller_config: ControllerConfig = ControllerConfig()
+    settle_steps: int = 5
+
+    # -- what a domain declares -----------------------------------------------------
+    @property
+    @abc.abstractmethod
+    def types(self) -> frozenset[Type]: ...
+
+    @property
+    @abc.abstractmethod
+    def predicates(self) -> frozenset[Predicate]: ...
+
+    @property
+    @abc.abstractmethod
+    def contact_predicates(self) -> frozenset[Predicate]: ...
+
+    @property
+    @abc.abstractmethod
+    def goal_predicates(self) -> frozenset[Predicate]: ...
+
+    @property
+    @abc.abstractmethod
+    def action_low(self) -> np.ndarray: ...
+
+    @property
+    @abc.abstractmethod
+    def action_high(self) -> np.ndarray: ...
+
+    @abc.abstractmethod
+    def sample_layout(self, rng: np.random.Generator, train: bool) -> TaskLayout:
+        """Sample a task's scene (MJCF), objects, goal and horizon."""
+
+    @abc.abstractmethod
+    def extract_features(self, world: World, objects: Sequence[Object]) -> dict[Object, np.ndarray]:
+        """Read every object's feature vector from ``world.data`` (contacts are current)."""
+
+    def command(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, float]:
+        """Map an action to (dpos, world rotation vector or None, dgrip). Default (dx,dy,dz,g)."""
+        return action[:3], None, float(action[3])
+
+    def demonstrator(self, task: Task, rng: np.random.Generator):
+        """A scripted closed-loop policy State -> action for ``task`` (actions only)."""
+        raise NotImplementedError(f"{self.name} has no scripted demonstrator")
+
+    def grip_enabled(self, state: State) -> bool:
+        """Whether the finger command is obeyed in ``state`` (Cover's allowed regions)."""
+        return True
+
+    def after_step(self, world: World) -> None:
+        """Domain physics beyond MuJoCo's (e.g. button latches); edits userdata only."""
+
+    @property
+    def max_objects(self) -> dict[str, int]:
+        """Upper bound on objects per type name over train and eval tasks (Gym obs size)."""
+        raise NotImplementedError
+
+    # -- tasks ----------------------------------------------------------------------
+    def train_tasks(self, n: int, seed: int) -> list[Task]:
+        return self._tasks(n, seed, train=True)
+
+    def eval_tasks(self, n: int, seed: int) -> list[Task]:
+        return self._tasks(n, seed, train=False)
+
+    def _tasks(self, n: int, seed: int, train: bool) -> list[Task]:
+        if n < 0:
+            raise ValueError(f"number of tasks must be >= 0, got {n}")
+        return [self.task(i, seed, train) for i in range(n)]
+
+    def task(self, index: int, seed: int, train: bool) -> Task:
+        """Task ``index`` of the seeded train/eval stream (independent of the others)."""
+        rng = np.random.default_rng([seed, 0 if train else 1, index])
+        return self.make_task(self.sample_layout(rng, train))
+
+    def make_task(self, layout: TaskLayout) -> Task:
+        world = World.from_xml(layout.xml, self.controller_config)
+        m, d = world.model, world.data
+        mujoco.mj_resetData(m, d)
+        world.controller.reset(d, POSE_SLICE, np.asarray(self.controller_config.home_qpos),
+                               self.controller_config.finger_open)
+        for joint, q in (layout.init_qpos or {}).items():
+            adr = m.joint(joint).qposadr[0]
+            d.qpos[adr: adr + len(q)] = q
+        for idx, value in (layout.init_userdata or {}).items():
+            d.userdata[idx] = value
+        mujoco.mj_forward(m, d)
+        for _ in range(self.settle_steps):  # let contacts settle with the arm holding still
+            world.step_physics()
+        d.time = 0.0
+        init = self._state(world, layout.objects)
+        return Task(init=init, goal=layout.goal, horizon=layout.horizon)
+
+    # -- the transition function ------------------------------------------------------
+    def simulate(self, state: State, action: np.ndarray) -> State:
+        action = self.check_action(action)
+        if state.sim is None:
+            raise ValueError("state has no simulator state; it cannot be simulated")
+        world = state.sim.world
+        assert isinstance(world, World)
+        world.load(state.sim.flat)
+        dpos, drot, dgrip = self.command(action)
+        world.controller.apply(world.data, POSE_SLICE, dpos, drot, dgrip, self.grip_enabled(state))
+        world.step_physics()
+        self.after_step(world)
+        return self._state(world, state.objects)
+
+    def check_action(self, action: np.ndarray) -> np.ndarray:
+        a = np.asarray(action, dtype=np.float64)
+        low, high = self.action_low, self.action_high
+        if a.shape != low.shape:
+            raise InvalidActionError(
+                f"{self.name}: action must have shape {low.shape}, got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise InvalidActionError(f"{self.name}: action contains NaN or inf: {a.tolist()}")
+        return np.clip(a, low, high)
+
+    def _state(self, world: World, objects: Sequence[Object]) -> State:
+        features = self.extract_features(world, objects)
+        return State(features, SimState(world, world.save()))
+
+    # -- persistence ------------------------------------------------------------------
+    def save_world(self, world: Hashable) -> str:
+        assert isinstance(world, World)
+        return world.xml
+
+    def load_world(self, text: str) -> World:
+        return World.from_xml(text, self.controller_config)
+
+    def state_from_flat(self, world: Hashable, flat: np.ndarray, like: State) -> State:
+        assert isinstance(world, World)
+        world.load(np.asarray(flat, dtype=np.float64))
+        return self._state(world, like.objects)
+
+    # -- helpers for domains ----------------------------------------------------------
+    @staticmethod
+    def contact_pairs(world: World) -> set[tuple[int, int]]:
+        """Unordered geom-id pairs currently in contact (distance <= 0)."""
+        d = world.data
+        n = d.ncon
+        if n == 0:
+            return set()
+        geoms = d.contact.geom[:n]
+        dist = d.contact.dist[:n]
+        return {(int(min(a, b)), int(max(a, b))) for (a, b), x in zip(geoms, dist) if x <= 0.0}
