@@ -7,7 +7,7 @@ task distributions and its exact transition function ``simulate``.
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+from collections.abc import Callable, Hashable, Iterator, Sequence
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -44,6 +44,23 @@ class Environment(Protocol):
     def train_tasks(self, n: int, seed: int) -> list[Task]: ...
 
     def eval_tasks(self, n: int, seed: int) -> list[Task]: ...
+
+    def task(self, index: int, seed: int, train: bool) -> Task:
+        """Task ``index`` of the seeded train/eval stream, independent of the others."""
+        ...
+
+    def check_action(self, action: np.ndarray) -> np.ndarray:
+        """Validate (shape, finite) and clip an action; raises ValueError naming the problem."""
+        ...
+
+    def demonstrator(self, task: Task, rng: np.random.Generator) -> Callable[[State], np.ndarray]:
+        """A scripted policy for collecting demonstrations (acts through actions only)."""
+        ...
+
+    def render(self, states: Sequence[State], camera: str, width: int,
+               height: int) -> Iterator[np.ndarray]:
+        """RGB frames (height, width, 3) of ``states`` seen from ``camera``."""
+        ...
 
     def simulate(self, state: State, action: np.ndarray) -> State:
         """Exact, deterministic f(x, u): same state and action give a bit-identical state."""

@@ -42,6 +42,7 @@ class ControllerConfig:
     arm_joints: tuple[str, ...] = tuple(f"joint{i}" for i in range(1, 8))
     arm_actuators: tuple[str, ...] = tuple(f"act_joint{i}" for i in range(1, 8))
     finger_actuator: str = "act_fingers"
+    finger_joints: tuple[str, ...] = ("finger_joint1", "finger_joint2")
     home_qpos: tuple[float, ...] = (0.0, -0.3, 0.0, -2.2, 0.0, 1.9, -0.7854)
     control_dt: float = 0.05
     max_translation: float = 0.02  # metres per control step
@@ -118,6 +119,8 @@ class EndEffectorController:
                 [model.joint(prefix + j).qposadr[0] for j in cfg.arm_joints]
             )
             self._site = model.site(prefix + cfg.site).id
+            self._finger_qadr = np.array(
+                [model.joint(prefix + j).qposadr[0] for j in cfg.finger_joints])
         except KeyError as err:
             raise ValueError(
                 f"the scene has no robot element {err}; it needs joints {cfg.arm_joints}, "
@@ -130,6 +133,7 @@ class EndEffectorController:
     def reset(self, data: mujoco.MjData, pose_slice: slice, q_arm: np.ndarray, finger: float) -> None:
         """Put the arm at ``q_arm`` at rest and make the commanded pose its current pose."""
         data.qpos[self._arm_qadr] = q_arm
+        data.qpos[self._finger_qadr] = finger
         data.ctrl[self._arm_act] = q_arm
         data.ctrl[self._finger_act] = finger
         self._configuration.update(self._ik_q(q_arm))
@@ -176,6 +180,14 @@ class EndEffectorController:
             f = data.ctrl[self._finger_act] + float(np.clip(dgrip, -1.0, 1.0)) * cfg.finger_step
             data.ctrl[self._finger_act] = min(max(f, 0.0), cfg.finger_open)
         return self._solve(data, pose)
+
+    def reference_qp(self, data: mujoco.MjData, pose_slice: slice):
+        """(configuration, tasks, limits) of the QP ``apply`` would solve now (benchmarks)."""
+        self._configuration.update(self._ik_q(data.ctrl[self._arm_act]))
+        pose = data.userdata[pose_slice]
+        self._frame_task.set_target(mink.SE3.from_rotation_and_translation(
+            mink.SO3(wxyz=pose[3:7].copy()), pose[:3].copy()))
+        return self._configuration, self._tasks, self._limits
 
     def _ik_q(self, q_arm: np.ndarray) -> np.ndarray:
         q = self._configuration.q.copy()

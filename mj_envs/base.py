@@ -160,6 +160,12 @@ class MujocoEnv(abc.ABC):
         features = self.extract_features(world, objects)
         return State(features, SimState(world, world.save()))
 
+    def render(self, states: Sequence[State], camera: str = "overview", width: int = 640,
+               height: int = 480):
+        from mj_envs.render import render_states
+
+        return render_states(states, camera, width, height)
+
     # -- persistence ------------------------------------------------------------------
     def save_world(self, world: Hashable) -> str:
         assert isinstance(world, World)

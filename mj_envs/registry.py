@@ -1,20 +1,16 @@
-"""Environment names -> classes. The one place that knows every domain by name."""
+"""Environment names -> classes for code inside mj_envs (bpns uses entry points)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
+from bpns.registry import UnknownEnvironmentError
 from mj_envs.base import MujocoEnv
 from mj_envs.cover import CoverEnv
 
 ENVIRONMENTS: dict[str, Callable[[], MujocoEnv]] = {
     "cover": CoverEnv,
 }
-
-
-class UnknownEnvironmentError(KeyError):
-    def __str__(self) -> str:
-        return str(self.args[0])
 
 
 def make_env(name: str) -> MujocoEnv:

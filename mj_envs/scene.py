@@ -61,8 +61,8 @@ def make_arena(model_name: str, nuserdata: int, timestep: float = 0.002) -> mjcf
         pos=(TABLE_CENTER_X, 0, -TABLE_SIZE[2]), material="table_mat",
         contype=OBJECT_CONTYPE, conaffinity=OBJECT_CONAFFINITY, friction=(0.6, 0.02, 0.001),
     )
-    focus = wb.add("body", name="workspace_focus", pos=(0.5, 0.0, 0.05))
-    wb.add("camera", name="overview", pos=(1.45, -0.95, 0.85), mode="targetbody",
+    focus = wb.add("body", name="workspace_focus", pos=(0.45, 0.0, 0.12))
+    wb.add("camera", name="overview", pos=(1.2, -0.8, 0.78), mode="targetbody",
            target=focus, fovy=45)
     wb.add("camera", name="front", pos=(1.6, 0.0, 0.55), mode="targetbody", target=focus, fovy=40)
     wb.add("camera", name="top", pos=(0.5, 0.0, 1.6), quat=(0.7071068, 0, 0, 0.7071068), fovy=45)

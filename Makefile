@@ -1,0 +1,51 @@
+# Two commands on a fresh Debian machine: `make run` and `make test`.
+# Both create .venv and install what is missing (torch CPU wheel first, then the package).
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+OUT    ?= outputs/cover
+N      ?= 10
+
+.PHONY: run test bench results lint clean system-deps
+
+$(STAMP): pyproject.toml
+	@$(MAKE) --no-print-directory system-deps
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q torch==2.13.0
+	$(PY) -m pip install -q -e ".[dev]"
+	@touch $(STAMP)
+
+# Headless rendering needs OSMesa; python3-venv is needed for the virtual environment.
+system-deps:
+	@missing=""; \
+	ldconfig -p 2>/dev/null | grep -q libOSMesa || missing="$$missing libosmesa6"; \
+	$(PYTHON) -c "import ensurepip, venv" 2>/dev/null || missing="$$missing python3-venv"; \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo "installing$$missing with apt-get"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null; \
+	  else \
+	    echo "note: please install$$missing (sudo apt-get install$$missing);"; \
+	    echo "      without libosmesa6 everything but video rendering works."; \
+	  fi; \
+	fi
+
+run: $(STAMP)
+	$(VENV)/bin/bpns run --env cover --demos $(N) --out $(OUT)
+
+test: $(STAMP)
+	$(PY) -m pytest -q
+
+bench: $(STAMP)
+	$(PY) scripts/bench_control.py
+
+results: $(STAMP)
+	$(PY) scripts/make_results.py
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check bpns ik mj_envs scripts tests
+
+clean:
+	rm -rf $(VENV) outputs .pytest_cache

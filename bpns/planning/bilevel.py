@@ -1,0 +1,203 @@
+"""Bilevel planning (paper Alg. 1): lazily generated abstract plans, each refined in turn.
+
+``plan`` never lets a timeout escape: once the wall-clock budget is spent (checked in the
+grounding and search loops and before every simulation step) it returns a failed
+:class:`PlanResult` with reason ``"timeout"``.
+"""
+
+from __future__ import annotations
+
+import enum
+import time
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bpns.abstraction import abstract
+from bpns.environment import Environment
+from bpns.planning.config import PlanningConfig
+from bpns.planning.heuristics import make_heuristic
+from bpns.planning.refinement import TIMEOUT, RefinementStats, refine
+from bpns.planning.search import STRATEGIES, AbstractPlan, SearchStats, skeletons
+from bpns.planning.strips import SearchTimeout, ground
+from bpns.structs import Skill, State, STRIPSOperator, Task
+
+
+class FailureReason(str, enum.Enum):
+    """Why planning failed; compares equal to its string value (``"timeout"`` ...)."""
+
+    TIMEOUT = "timeout"
+    NO_ABSTRACT_PLAN = "no_abstract_plan"  # the abstract search found no plan at all
+    REFINEMENT_FAILED = "refinement_failed"  # every abstract plan tried failed to refine
+
+    def __str__(self) -> str:
+        return self.value
+
+
+@dataclass(frozen=True)
+class PlanningStats:
+    nodes_created: int = 0
+    nodes_expanded: int = 0
+    ground_operators: int = 0
+    abstract_plans_tried: int = 0
+    samples_drawn: int = 0
+    sim_steps: int = 0
+    backtracks: int = 0
+    search_time: float = 0.0  # grounding + heuristic search (s)
+    refinement_time: float = 0.0  # sampling + simulation (s)
+    total_time: float = 0.0
+    sample_failures: tuple[tuple[str, int], ...] = ()
+
+
+@dataclass(frozen=True, eq=False)
+class PlanResult:
+    """Outcome of :func:`plan`.
+
+    On success ``actions`` (k x action_dim) take ``states[0]`` (the task's initial state)
+    to ``states[-1]`` where the goal holds; ``skeleton`` is the abstract plan refined and
+    ``skills`` the skill used at each of its steps. On failure ``actions`` is empty,
+    ``states`` is ``(init,)`` and ``reason`` says why.
+    """
+
+    success: bool
+    actions: np.ndarray
+    states: tuple[State, ...]
+    skeleton: AbstractPlan | None
+    skills: tuple[Skill, ...]
+    reason: FailureReason | None
+    stats: PlanningStats = field(default_factory=PlanningStats)
+    step_starts: tuple[int, ...] = ()
+    subgoals: tuple[np.ndarray, ...] = ()
+
+
+def plan(
+    task: Task,
+    skills: Sequence[Skill],
+    env: Environment,
+    config: PlanningConfig,
+    rng: np.random.Generator,
+) -> PlanResult:
+    """Solve ``task`` with ``skills`` by bilevel planning within ``config.timeout`` seconds."""
+    start = time.monotonic()
+    deadline = start + config.timeout
+    by_operator: dict[STRIPSOperator, Skill] = {}
+    for s in skills:
+        if s.operator in by_operator:
+            raise ValueError(f"two skills share the operator {s.operator.name}")
+        by_operator[s.operator] = s
+    action_dim = np.asarray(env.action_low).size
+    acc = _Accumulator(start)
+
+    init_atoms = abstract(task.init, env.predicates)
+    if task.goal <= init_atoms:
+        return acc.result(True, task, action_dim, None, AbstractPlan((), (init_atoms,), 0.0))
+
+    try:
+        t0 = time.monotonic()
+        try:
+            problem = ground(list(by_operator), task.objects, init_atoms, task.goal, deadline)
+            heuristic = (
+                None if config.search == "ucs" else make_heuristic(config.heuristic, problem)
+            )
+        finally:
+            acc.search_time += time.monotonic() - t0
+        acc.ground_operators = len(problem.operators)
+        generator = skeletons(
+            problem,
+            heuristic,
+            STRATEGIES[config.search],
+            max_skeletons=config.n_abstract,
+            max_length=min(config.max_plan_length, task.horizon),  # each skill acts >= once
+            deadline=deadline,
+            stats=acc.search,
+        )
+        while True:
+            t0 = time.monotonic()
+            try:
+                skeleton = next(generator, None)
+            finally:
+                acc.search_time += time.monotonic() - t0
+            if skeleton is None:
+                break
+            acc.plans_tried += 1
+            t0 = time.monotonic()
+            ref = refine(
+                skeleton,
+                [by_operator[op.operator] for op in skeleton.operators],
+                task,
+                env,
+                config,
+                rng,
+                deadline,
+            )
+            acc.refinement_time += time.monotonic() - t0
+            acc.add(ref.stats)
+            if ref.success:
+                return PlanResult(
+                    success=True,
+                    actions=ref.actions,
+                    states=ref.states,
+                    skeleton=skeleton,
+                    skills=ref.skills,
+                    reason=None,
+                    stats=acc.freeze(),
+                    step_starts=ref.step_starts,
+                    subgoals=ref.subgoals,
+                )
+            if ref.reason == TIMEOUT:
+                raise SearchTimeout
+    except SearchTimeout:
+        return acc.result(False, task, action_dim, FailureReason.TIMEOUT, None)
+    reason = FailureReason.REFINEMENT_FAILED if acc.plans_tried else FailureReason.NO_ABSTRACT_PLAN
+    return acc.result(False, task, action_dim, reason, None)
+
+
+class _Accumulator:
+    """Sums statistics over the skeletons tried; frozen into PlanningStats at the end."""
+
+    def __init__(self, start: float) -> None:
+        self.start = start
+        self.plans_tried = 0
+        self.ground_operators = 0
+        self.search_time = 0.0
+        self.refinement_time = 0.0
+        self.samples = 0
+        self.sim_steps = 0
+        self.backtracks = 0
+        self.failures: Counter = Counter()
+        self.search = SearchStats()  # updated in place by the skeleton generator
+
+    def add(self, s: RefinementStats) -> None:
+        self.samples += s.samples
+        self.sim_steps += s.sim_steps
+        self.backtracks += s.backtracks
+        self.failures.update(dict(s.sample_failures))
+
+    def freeze(self) -> PlanningStats:
+        return PlanningStats(
+            nodes_created=self.search.nodes_created,
+            nodes_expanded=self.search.nodes_expanded,
+            ground_operators=self.ground_operators,
+            abstract_plans_tried=self.plans_tried,
+            samples_drawn=self.samples,
+            sim_steps=self.sim_steps,
+            backtracks=self.backtracks,
+            search_time=self.search_time,
+            refinement_time=self.refinement_time,
+            total_time=time.monotonic() - self.start,
+            sample_failures=tuple(sorted(self.failures.items())),
+        )
+
+    def result(
+        self,
+        success: bool,
+        task: Task,
+        action_dim: int,
+        reason: FailureReason | None,
+        skeleton: AbstractPlan | None,
+    ) -> PlanResult:
+        return PlanResult(
+            success, np.zeros((0, action_dim)), (task.init,), skeleton, (), reason, self.freeze()
+        )

@@ -1,0 +1,58 @@
+"""Planning parameters, passed explicitly (no global config).
+
+The paper's ablations are just configs: ``Samples=1`` is ``PlanningConfig(n_samples=1)``
+and ``AbstractPlans=1`` is ``PlanningConfig(n_abstract=1)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+HEURISTICS = ("lmcut", "hff", "hadd", "hmax")
+SEARCHES = ("astar", "gbfs", "ucs")
+
+
+@dataclass(frozen=True)
+class PlanningConfig:
+    """Parameters of bilevel planning (paper Alg. 1 and appendix B).
+
+    n_abstract:        N_abstract, abstract plans (skeletons) tried before giving up.
+    n_samples:         N_samples, subgoal samples per skeleton step before backtracking.
+    timeout:           wall-clock seconds for the whole ``plan`` call (paper: 300).
+    heuristic:         delete-relaxation heuristic guiding the abstract search.
+    search:            "astar" (g+h), "gbfs" (h) or "ucs" (g, heuristic unused).
+    max_skill_horizon: H_skill, most actions one skill may take for one subgoal.
+    stuck_steps:       a rollout fails after this many consecutive steps in which no
+                       feature moved by more than ``stuck_atol`` (saves waiting out H_skill).
+    stuck_atol:        absolute tolerance of the "state stopped changing" test.
+    max_plan_length:   most ground skills in one abstract plan.
+    """
+
+    n_abstract: int = 8
+    n_samples: int = 10
+    timeout: float = 300.0
+    heuristic: str = "lmcut"
+    search: str = "astar"
+    max_skill_horizon: int = 200
+    stuck_steps: int = 10
+    stuck_atol: float = 1e-6
+    max_plan_length: int = 100
+
+    def __post_init__(self) -> None:
+        if self.heuristic not in HEURISTICS:
+            raise ValueError(f"heuristic must be one of {HEURISTICS}, got {self.heuristic!r}")
+        if self.search not in SEARCHES:
+            raise ValueError(f"search must be one of {SEARCHES}, got {self.search!r}")
+        for name in (
+            "n_abstract",
+            "n_samples",
+            "max_skill_horizon",
+            "stuck_steps",
+            "max_plan_length",
+        ):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if not self.timeout > 0:
+            raise ValueError(f"timeout must be > 0, got {self.timeout}")
+        if self.stuck_atol < 0:
+            raise ValueError(f"stuck_atol must be >= 0, got {self.stuck_atol}")

@@ -1,0 +1,171 @@
+"""Lazy top-k generation of abstract plans ("skeletons") by best-first tree search.
+
+Bilevel planning needs more than the first plan: when a skeleton cannot be refined the
+next one is tried (paper §5, "top-k"). So the search is a *tree* search: a node is a path,
+not a state, and several plans may pass through the same abstract state. Cycles along one
+path are forbidden and paths are capped in length. To keep unsolvable problems finite and
+avoid re-expanding popular states endlessly, each abstract state is expanded at most
+``max_skeletons`` times (for A* with a consistent heuristic this is the classic
+k-shortest-paths bound: the k best plans never need a state's (k+1)-th best prefix).
+
+The strategy is only an ordering function ``priority(g, h)``; ties are broken by
+insertion order, so results are deterministic.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+from bpns.planning.heuristics import Heuristic
+from bpns.planning.strips import GroundProblem, check_deadline
+from bpns.structs import GroundAtom, GroundOperator
+
+Priority = Callable[[float, float], tuple[float, ...]]
+
+
+def astar(g: float, h: float) -> tuple[float, ...]:
+    """f = g + h, preferring deeper (lower h) nodes on ties."""
+    return (g + h, h)
+
+
+def gbfs(g: float, h: float) -> tuple[float, ...]:
+    """Greedy: h only, shorter paths first on ties."""
+    return (h, g)
+
+
+def uniform_cost(g: float, h: float) -> tuple[float, ...]:
+    """Dijkstra order; the heuristic is ignored (pass ``heuristic=None``)."""
+    return (g,)
+
+
+STRATEGIES: dict[str, Priority] = {"astar": astar, "gbfs": gbfs, "ucs": uniform_cost}
+
+
+@dataclass(frozen=True)
+class AbstractPlan:
+    """A skeleton: ground operators and the abstract states they are expected to produce.
+
+    ``atoms[0]`` is the initial abstract state and ``atoms[i + 1]`` the expected state
+    after ``operators[i]``; refinement checks exactly these.
+    """
+
+    operators: tuple[GroundOperator, ...]
+    atoms: tuple[frozenset[GroundAtom], ...]
+    cost: float
+
+    def __len__(self) -> int:
+        return len(self.operators)
+
+
+@dataclass
+class SearchStats:
+    """Mutable counters, updated while the generator runs (also across a timeout)."""
+
+    nodes_created: int = 0
+    nodes_expanded: int = 0
+    skeletons: int = 0
+
+
+class _Node:
+    __slots__ = ("state", "parent", "op", "g", "depth")
+
+    def __init__(self, state: int, parent: _Node | None, op: int, g: float, depth: int) -> None:
+        self.state = state
+        self.parent = parent
+        self.op = op
+        self.g = g
+        self.depth = depth
+
+    def on_path(self, state: int) -> bool:
+        node: _Node | None = self
+        while node is not None:
+            if node.state == state:
+                return True
+            node = node.parent
+        return False
+
+
+def skeletons(
+    problem: GroundProblem,
+    heuristic: Heuristic | None,
+    priority: Priority,
+    *,
+    max_skeletons: int,
+    max_length: int,
+    deadline: float | None = None,
+    stats: SearchStats | None = None,
+) -> Iterator[AbstractPlan]:
+    """Yield up to ``max_skeletons`` distinct abstract plans in ``priority`` order.
+
+    Plans have at most ``max_length`` operators and never repeat an abstract state.
+    Operators cost 1. ``heuristic=None`` means h = 0 (and no dead-end pruning). The
+    generator raises :class:`~bpns.planning.strips.SearchTimeout` once ``deadline``
+    (a ``time.monotonic()`` value) has passed, and simply ends when the space is exhausted.
+    """
+    stats = stats if stats is not None else SearchStats()
+    h_of = heuristic if heuristic is not None else (lambda s: 0.0)
+    check_deadline(deadline)
+    h0 = h_of(problem.init)
+    if h0 == math.inf or max_skeletons < 1:
+        return
+    counter = itertools.count()
+    root = _Node(problem.init, None, -1, 0.0, 0)
+    stats.nodes_created += 1
+    frontier: list[tuple[tuple[float, ...], int, _Node]] = [
+        (priority(0.0, h0), next(counter), root)
+    ]
+    pops: dict[int, int] = {}
+    n_yielded = 0
+    goal = problem.goal
+    pre, add, delete = problem.pre, problem.add, problem.delete
+    while frontier:
+        check_deadline(deadline)
+        _, _, node = heapq.heappop(frontier)
+        state = node.state
+        k = pops.get(state, 0) + 1
+        if k > max_skeletons:
+            continue
+        pops[state] = k
+        if state & goal == goal:
+            stats.skeletons += 1
+            n_yielded += 1
+            yield _extract(problem, node)
+            if n_yielded >= max_skeletons:
+                return
+            continue
+        if node.depth >= max_length:
+            continue
+        stats.nodes_expanded += 1
+        g = node.g + 1.0
+        for i, p in enumerate(pre):
+            if state & p != p:
+                continue
+            child = (state & ~delete[i]) | add[i]
+            if node.on_path(child):
+                continue
+            check_deadline(deadline)
+            h = h_of(child)
+            if h == math.inf:
+                continue
+            stats.nodes_created += 1
+            heapq.heappush(
+                frontier, (priority(g, h), next(counter), _Node(child, node, i, g, node.depth + 1))
+            )
+
+
+def _extract(problem: GroundProblem, node: _Node) -> AbstractPlan:
+    ops: list[GroundOperator] = []
+    states: list[int] = []
+    cur: _Node | None = node
+    while cur is not None:
+        states.append(cur.state)
+        if cur.parent is not None:
+            ops.append(problem.operators[cur.op])
+        cur = cur.parent
+    ops.reverse()
+    states.reverse()
+    return AbstractPlan(tuple(ops), tuple(problem.decode(s) for s in states), node.g)

@@ -1,0 +1,31 @@
+"""Find environments by name through the ``bpns.environments`` entry-point group.
+
+bpns never imports a domain: packages declare theirs in their metadata, e.g.
+``[project.entry-points."bpns.environments"] cover = "mj_envs.cover:CoverEnv"``,
+which is also how a user plugs in an environment built on their own MJCF.
+"""
+
+from __future__ import annotations
+
+from importlib.metadata import entry_points
+
+from bpns.environment import Environment
+
+GROUP = "bpns.environments"
+
+
+class UnknownEnvironmentError(KeyError):
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+def environment_names() -> list[str]:
+    return sorted(ep.name for ep in entry_points(group=GROUP))
+
+
+def make_environment(name: str) -> Environment:
+    matches = [ep for ep in entry_points(group=GROUP) if ep.name == name]
+    if not matches:
+        known = ", ".join(environment_names()) or "none installed"
+        raise UnknownEnvironmentError(f"unknown environment {name!r}; known: {known}")
+    return matches[0].load()()

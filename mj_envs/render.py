@@ -1,0 +1,50 @@
+"""Offscreen rendering of states with MuJoCo's renderer (OSMesa when headless)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator, Sequence
+
+import mujoco
+import numpy as np
+
+from bpns.structs import State
+from mj_envs.gl import OSMESA_HINT, osmesa_available
+from mj_envs.world import World
+
+
+class RenderingUnavailable(RuntimeError):
+    """No OpenGL backend could be started; the message says how to fix it."""
+
+
+def _check_backend() -> None:
+    backend = os.environ.get("MUJOCO_GL")
+    if backend in (None, "osmesa") and not osmesa_available():
+        raise RenderingUnavailable(OSMESA_HINT)
+
+
+def render_states(states: Sequence[State], camera: str = "overview", width: int = 640,
+                  height: int = 480) -> Iterator[np.ndarray]:
+    """Yield one RGB frame per state; the renderer is always closed afterwards."""
+    if not states:
+        return
+    _check_backend()
+    world = states[0].sim.world
+    assert isinstance(world, World)
+    if camera not in {world.model.camera(i).name for i in range(world.model.ncam)}:
+        names = sorted(world.model.camera(i).name for i in range(world.model.ncam))
+        raise ValueError(f"no camera {camera!r} in this scene; cameras: {', '.join(names)}")
+    try:
+        renderer = mujoco.Renderer(world.model, height=height, width=width)
+    except Exception as err:  # noqa: BLE001  (MuJoCo raises bare errors when GL is missing)
+        raise RenderingUnavailable(f"could not start an OpenGL context ({err}); {OSMESA_HINT}") from None
+    # OSMesa renders in software: shadows and reflections would triple the cost per frame
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
+    try:
+        for state in states:
+            world.load(state.sim.flat)
+            renderer.update_scene(world.data, camera=camera)
+            yield renderer.render().copy()
+    finally:
+        renderer.close()

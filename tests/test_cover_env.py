@@ -1,0 +1,88 @@
+"""Cover in physics: exact determinism, contact-based predicates, bad actions."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+
+from bpns.abstraction import abstract
+from mj_envs.base import InvalidActionError
+from mj_envs.cover import HOLDING
+
+
+def test_simulate_is_bit_identical_for_the_same_state_and_action(cover_env, rng):
+    s0 = cover_env.task(0, 1, True).init
+    actions = rng.uniform(cover_env.action_low, cover_env.action_high, size=(20, 4))
+    a, b = s0, s0
+    for act in actions:
+        a = cover_env.simulate(a, act)
+    for act in actions:
+        b = cover_env.simulate(b, act)
+    assert np.array_equal(a.sim.flat, b.sim.flat)
+
+
+def test_pickle_round_trip_then_step_is_bit_identical(cover_env, rng):
+    s = cover_env.task(1, 1, True).init
+    for act in rng.uniform(cover_env.action_low, cover_env.action_high, size=(5, 4)):
+        s = cover_env.simulate(s, act)
+    copy = pickle.loads(pickle.dumps(s))
+    act = np.array([0.01, -0.01, 0.0, -1.0])
+    assert np.array_equal(cover_env.simulate(s, act).sim.flat,
+                          cover_env.simulate(copy, act).sim.flat)
+
+
+def _pads_touching(state, block):
+    world = state.sim.world
+    world.load(state.sim.flat)
+    m, d = world.model, world.data
+    g = m.geom(f"{block.name}_geom").id
+    pads = {m.geom("panda/left_pad").id, m.geom("panda/right_pad").id}
+    touching = set()
+    for c in d.contact[: d.ncon]:
+        pair = {int(c.geom1), int(c.geom2)}
+        if g in pair and c.dist <= 0:
+            touching |= pair & pads
+    return touching
+
+
+def test_holding_flips_with_both_pad_contacts_and_back_after_release(cover_demos):
+    demo = cover_demos[0]
+    block = next(a.objects[0] for a in demo.task.goal)
+    held = [HOLDING.holds(s, (block,)) for s in demo.states]
+    first = held.index(True)
+    last = len(held) - 1 - held[::-1].index(True)
+    # before the grasp: not both pads touch; at the flip: both pads are in the contact list
+    assert len(_pads_touching(demo.states[first - 1], block)) < 2
+    assert len(_pads_touching(demo.states[first], block)) == 2
+    # after release the contact list no longer has both pads and Holding is false again
+    assert not held[last + 1]
+    assert len(_pads_touching(demo.states[last + 1], block)) < 2
+    assert demo.task.goal <= abstract(demo.states[-1], demo.task.goal and
+                                      {a.predicate for a in demo.task.goal})
+
+
+@pytest.mark.parametrize("bad", [np.array([np.nan, 0, 0, 0]), np.zeros(3), np.array([0, 0, np.inf, 0])])
+def test_bad_actions_raise_one_clear_error(cover_env, bad):
+    s = cover_env.task(0, 2, True).init
+    with pytest.raises(InvalidActionError, match="action"):
+        cover_env.simulate(s, bad)
+
+
+def test_grip_is_ignored_outside_allowed_regions(cover_env):
+    s = cover_env.task(0, 3, True).init  # the hand starts high above the line's start
+    robot = next(o for o in s.objects if o.name == "robot")
+    assert not cover_env.grip_enabled(s)
+    f0 = s.get(robot, "fingers")
+    for _ in range(10):
+        s = cover_env.simulate(s, np.array([0, 0, 0, -1.0]))
+    assert s.get(robot, "fingers") > f0 - 1e-3  # the close command did nothing
+
+
+def test_train_and_eval_streams_are_seeded_and_distinct(cover_env):
+    a = cover_env.task(0, 5, True)
+    b = cover_env.task(0, 5, True)
+    c = cover_env.task(0, 5, False)
+    assert a.init.sim.world is b.init.sim.world
+    assert a.init.sim.world is not c.init.sim.world
