@@ -211,6 +211,11 @@ class CoverEnv(MujocoEnv):
 
         return CoverDemonstrator(task, rng)
 
+    def oracle_skills(self):
+        from mj_envs.cover_skills import oracle_skills
+
+        return oracle_skills()
+
     def grip_enabled(self, state: State) -> bool:
         robot = next(o for o in state.objects if o.type == ROBOT)
         x, y = state.get(robot, "x"), state.get(robot, "y")

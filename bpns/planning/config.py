@@ -26,6 +26,9 @@ class PlanningConfig:
                        feature moved by more than ``stuck_atol`` (saves waiting out H_skill).
     stuck_atol:        absolute tolerance of the "state stopped changing" test.
     max_plan_length:   most ground skills in one abstract plan.
+    end_on_contact_change: end a skill at the first change of a contact-related atom (as
+                       segmentation does): success if the expected atoms hold then, else
+                       an immediate sample failure instead of waiting out H_skill.
     """
 
     n_abstract: int = 8
@@ -37,6 +40,7 @@ class PlanningConfig:
     stuck_steps: int = 10
     stuck_atol: float = 1e-6
     max_plan_length: int = 100
+    end_on_contact_change: bool = False
 
     def __post_init__(self) -> None:
         if self.heuristic not in HEURISTICS:

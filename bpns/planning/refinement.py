@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bpns.abstraction import object_tuples
+
 from bpns.environment import Environment
 from bpns.planning.config import PlanningConfig
 from bpns.planning.search import AbstractPlan
@@ -32,6 +34,7 @@ POLICY_ERROR = "policy_error"
 POLICY_NONFINITE = "policy_nonfinite"
 SKILL_HORIZON = "skill_horizon"
 STUCK = "stuck"
+CONTACT_CHANGED = "unexpected_contact_change"
 TASK_HORIZON = "task_horizon"
 TIMEOUT = "timeout"
 # Why a whole refinement failed.
@@ -114,6 +117,18 @@ class _Rollout:
         self.horizon = task.horizon
         self.deadline = deadline
         self.counters = counters
+        # every ground contact-related atom over the task's objects (segmentation's set)
+        self.contact_watch: list = []
+        if config.end_on_contact_change:
+            contact = getattr(env, "contact_predicates", frozenset())
+            self.contact_watch = [
+                (p.classifier, objs)
+                for p in sorted(contact)
+                for objs in object_tuples(task.init.objects, p.types)
+            ]
+
+    def contact_values(self, state: State) -> tuple[bool, ...]:
+        return tuple(bool(c(state, o)) for c, o in self.contact_watch)
 
     @staticmethod
     def features(state: State) -> tuple[tuple[Object, ...], np.ndarray]:
@@ -175,6 +190,7 @@ class _Rollout:
         states: list[State] = []
         feats = self.features(state)
         unchanged = 0
+        watch = self.contact_values(state) if self.contact_watch else None
         for t in range(self.config.max_skill_horizon):
             if deadline is not None and time.monotonic() >= deadline:
                 raise _Timeout
@@ -195,6 +211,8 @@ class _Rollout:
             states.append(state)
             if _complete(state, must_hold, must_not_hold):
                 return _Segment(subgoal, actions, states)
+            if watch is not None and self.contact_values(state) != watch:
+                return CONTACT_CHANGED
             new_feats = self.features(state)
             if self.unchanged(feats, new_feats):
                 unchanged += 1
