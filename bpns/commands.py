@@ -39,8 +39,14 @@ def _positive(text: str) -> int:
 def _progress(iterable, total: int, desc: str):
     from tqdm import tqdm
 
-    return tqdm(iterable, total=total, desc=desc, unit="task", disable=not sys.stderr.isatty()
-                and os.environ.get("BPNS_PROGRESS") != "1", leave=False)
+    return tqdm(
+        iterable,
+        total=total,
+        desc=desc,
+        unit="task",
+        disable=not sys.stderr.isatty() and os.environ.get("BPNS_PROGRESS") != "1",
+        leave=False,
+    )
 
 
 # -- demos ------------------------------------------------------------------------------
@@ -63,7 +69,8 @@ def cmd_demos(args: argparse.Namespace) -> int:
     def successful():
         for index, demo in _progress(
             collect_demonstrations(env.name, args.num, args.seed, args.workers),
-            args.num, f"demos {env.name}",
+            args.num,
+            f"demos {env.name}",
         ):
             if demo is None:
                 failed.append(index)
@@ -72,8 +79,10 @@ def cmd_demos(args: argparse.Namespace) -> int:
 
     n = save_demonstrations(args.out, env, successful())
     dt = time.perf_counter() - t0
-    print(f"wrote {n} demonstrations of {env.name} to {args.out} in {dt:.1f} s"
-          + (f"; the demonstrator failed on tasks {failed}" if failed else ""))
+    print(
+        f"wrote {n} demonstrations of {env.name} to {args.out} in {dt:.1f} s"
+        + (f"; the demonstrator failed on tasks {failed}" if failed else "")
+    )
     return 0 if n else 1
 
 
@@ -94,7 +103,9 @@ def _file_env(path: Path, name: str | None):
             with h5py.File(path, "r") as f:
                 name = str(f.attrs.get("env", ""))
         except OSError as err:
-            raise UserError(f"{path}: not a readable HDF5 file (corrupt or truncated?): {err}") from None
+            raise UserError(
+                f"{path}: not a readable HDF5 file (corrupt or truncated?): {err}"
+            ) from None
         if not name:
             raise UserError(f"{path}: not a bpns demonstration file (no env attribute)")
     return _env(name)
@@ -108,18 +119,26 @@ def cmd_replay(args: argparse.Namespace) -> int:
     try:
         total = count_demonstrations(args.file)
         n = min(total, args.limit or total)
-        reports = [replay(env, d, i) for i, d in
-                   enumerate(_progress(iter_demonstrations(args.file, env, range(n)), n, "replay"))]
+        reports = [
+            replay(env, d, i)
+            for i, d in enumerate(
+                _progress(iter_demonstrations(args.file, env, range(n)), n, "replay")
+            )
+        ]
     except DatasetError as err:
         raise UserError(str(err)) from None
     bad = [r for r in reports if not r.exact or not r.goal_reached]
     worst = max((r.max_state_diff for r in reports), default=0.0)
-    print(f"replayed {len(reports)} demonstrations ({sum(r.steps for r in reports)} steps): "
-          f"max |state diff| = {worst:.3g}, "
-          f"{len(reports) - len(bad)}/{len(reports)} exact and reaching their goal")
+    print(
+        f"replayed {len(reports)} demonstrations ({sum(r.steps for r in reports)} steps): "
+        f"max |state diff| = {worst:.3g}, "
+        f"{len(reports) - len(bad)}/{len(reports)} exact and reaching their goal"
+    )
     for r in bad:
-        print(f"  demo_{r.demo}: max state diff {r.max_state_diff:.3g}, feature diff "
-              f"{r.max_feature_diff:.3g}, goal {'reached' if r.goal_reached else 'NOT reached'}")
+        print(
+            f"  demo_{r.demo}: max state diff {r.max_state_diff:.3g}, feature diff "
+            f"{r.max_feature_diff:.3g}, goal {'reached' if r.goal_reached else 'NOT reached'}"
+        )
     return 0 if not bad else 1
 
 
@@ -149,8 +168,17 @@ def cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
-def render_video(env, states, out: Path, camera: str, width: int, height: int,
-                 png: Path | None = None, control_hz: float = 20.0, fps: int = 30) -> int:
+def render_video(
+    env,
+    states,
+    out: Path,
+    camera: str,
+    width: int,
+    height: int,
+    png: Path | None = None,
+    control_hz: float = 20.0,
+    fps: int = 30,
+) -> int:
     """Render ``states`` to a real-time mp4 (frames resampled from the control rate)."""
     from bpns.video import write_mp4, write_png
 
@@ -189,11 +217,30 @@ def cmd_run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     demos_path = out / "demos.h5"
     steps = [
-        ["demos", "--env", args.env, "-n", str(args.demos), "--seed", str(args.seed),
-         "--out", str(demos_path), "--workers", str(args.workers)],
+        [
+            "demos",
+            "--env",
+            args.env,
+            "-n",
+            str(args.demos),
+            "--seed",
+            str(args.seed),
+            "--out",
+            str(demos_path),
+            "--workers",
+            str(args.workers),
+        ],
         ["replay", str(demos_path)],
-        ["render", str(demos_path), "--demo", "0", "--out", str(out / "demo_0.mp4"),
-         "--png", str(out / "demo_0.png")],
+        [
+            "render",
+            str(demos_path),
+            "--demo",
+            "0",
+            "--out",
+            str(out / "demo_0.mp4"),
+            "--png",
+            str(out / "demo_0.png"),
+        ],
     ]
     from bpns.cli import main as cli_main
 

@@ -34,8 +34,9 @@ class DatasetError(ValueError):
     """A demonstration file is missing, corrupt, truncated or not of this format."""
 
 
-def save_demonstrations(path: str | os.PathLike, env: Environment,
-                        demos: Iterable[Demonstration]) -> int:
+def save_demonstrations(
+    path: str | os.PathLike, env: Environment, demos: Iterable[Demonstration]
+) -> int:
     """Write ``demos`` to ``path`` atomically; returns how many were written."""
     n = 0
     with atomic_path(path, ".h5") as tmp:
@@ -59,15 +60,17 @@ def _write_demo(g: h5py.Group, env: Environment, demo: Demonstration) -> None:
     for obj in first.objects:
         feats.create_dataset(obj.name, data=np.stack([s.data[obj] for s in demo.states]))
     g.attrs["world"] = env.save_world(first.sim.world)
-    g.attrs["goal"] = json.dumps(sorted([a.predicate.name, [o.name for o in a.objects]]
-                                        for a in demo.task.goal))
+    g.attrs["goal"] = json.dumps(
+        sorted([a.predicate.name, [o.name for o in a.objects]] for a in demo.task.goal)
+    )
     g.attrs["objects"] = json.dumps([[o.name, o.type.name] for o in first.objects])
     g.attrs["horizon"] = demo.task.horizon
     g.attrs["num_samples"] = len(demo.actions)
 
 
-def load_demonstrations(path: str | os.PathLike, env: Environment,
-                        indices: Iterable[int] | None = None) -> list[Demonstration]:
+def load_demonstrations(
+    path: str | os.PathLike, env: Environment, indices: Iterable[int] | None = None
+) -> list[Demonstration]:
     return list(iter_demonstrations(path, env, indices))
 
 
@@ -76,13 +79,15 @@ def count_demonstrations(path: str | os.PathLike) -> int:
         return len(_data(f, path))
 
 
-def iter_demonstrations(path: str | os.PathLike, env: Environment,
-                        indices: Iterable[int] | None = None) -> Iterator[Demonstration]:
+def iter_demonstrations(
+    path: str | os.PathLike, env: Environment, indices: Iterable[int] | None = None
+) -> Iterator[Demonstration]:
     with _open(path) as f:
         data = _data(f, path)
         if f.attrs.get("env") != env.name:
             raise DatasetError(
-                f"{path}: holds demonstrations of {f.attrs.get('env')!r}, not {env.name!r}")
+                f"{path}: holds demonstrations of {f.attrs.get('env')!r}, not {env.name!r}"
+            )
         names = sorted(data, key=lambda k: int(k.split("_")[1]))
         chosen = names if indices is None else [f"demo_{i}" for i in indices]
         for name in chosen:
@@ -101,7 +106,9 @@ def _open(path: str | os.PathLike) -> h5py.File:
     try:
         return h5py.File(p, "r")
     except OSError as err:
-        raise DatasetError(f"{p}: not a readable HDF5 file (corrupt or truncated?): {err}") from None
+        raise DatasetError(
+            f"{p}: not a readable HDF5 file (corrupt or truncated?): {err}"
+        ) from None
 
 
 def _data(f: h5py.File, path: str | os.PathLike) -> h5py.Group:
@@ -128,7 +135,9 @@ def _read_demo(g: h5py.Group, env: Environment) -> Demonstration:
         State({o: v[i] for o, v in feats.items()}, SimState(world, flats[i]))
         for i in range(len(flats))
     )
-    goal = frozenset(GroundAtom(preds[p], tuple(objects[o] for o in objs))
-                     for p, objs in json.loads(g.attrs["goal"]))
+    goal = frozenset(
+        GroundAtom(preds[p], tuple(objects[o] for o in objs))
+        for p, objs in json.loads(g.attrs["goal"])
+    )
     task = Task(init=states[0], goal=goal, horizon=int(g.attrs["horizon"]))
     return Demonstration(task=task, states=states, actions=actions)

@@ -47,7 +47,8 @@ def _collect_one(job: DemoJob) -> tuple[int, Demonstration | None]:
     from bpns.registry import make_environment
 
     env = _ENV_CACHE.get(job.env_name) or _ENV_CACHE.setdefault(
-        job.env_name, make_environment(job.env_name))
+        job.env_name, make_environment(job.env_name)
+    )
     task = env.task(job.index, job.seed, job.train)
     return job.index, run_demonstrator(env, task, seed=[job.seed, job.index])
 
@@ -55,8 +56,9 @@ def _collect_one(job: DemoJob) -> tuple[int, Demonstration | None]:
 _ENV_CACHE: dict[str, Environment] = {}
 
 
-def collect_demonstrations(env_name: str, n: int, seed: int, workers: int = 1,
-                           train: bool = True) -> Iterator[tuple[int, Demonstration | None]]:
+def collect_demonstrations(
+    env_name: str, n: int, seed: int, workers: int = 1, train: bool = True
+) -> Iterator[tuple[int, Demonstration | None]]:
     """Yield (task index, demo or None) for tasks 0..n-1 of the seeded stream, in order."""
     jobs = [DemoJob(env_name, seed, i, train) for i in range(n)]
     if workers <= 1:

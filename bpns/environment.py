@@ -57,8 +57,9 @@ class Environment(Protocol):
         """A scripted policy for collecting demonstrations (acts through actions only)."""
         ...
 
-    def render(self, states: Sequence[State], camera: str, width: int,
-               height: int) -> Iterator[np.ndarray]:
+    def render(
+        self, states: Sequence[State], camera: str, width: int, height: int
+    ) -> Iterator[np.ndarray]:
         """RGB frames (height, width, 3) of ``states`` seen from ``camera``."""
         ...
 

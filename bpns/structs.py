@@ -241,7 +241,9 @@ class GroundOperator:
 class SubgoalPolicy(Protocol):
     """pi(objects, state, subgoal) -> action. ``subgoal`` is an absolute scope vector."""
 
-    def __call__(self, state: State, objects: Sequence[Object], subgoal: np.ndarray) -> np.ndarray: ...
+    def __call__(
+        self, state: State, objects: Sequence[Object], subgoal: np.ndarray
+    ) -> np.ndarray: ...
 
 
 class SubgoalSampler(Protocol):

@@ -14,8 +14,15 @@ from bpns.atomic import atomic_path
 def write_mp4(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: int = 30) -> int:
     n = 0
     with atomic_path(path, ".mp4") as tmp:
-        writer = imageio.get_writer(tmp, format="FFMPEG", fps=fps, codec="libx264",
-                                    quality=7, macro_block_size=8, ffmpeg_log_level="error")
+        writer = imageio.get_writer(
+            tmp,
+            format="FFMPEG",
+            fps=fps,
+            codec="libx264",
+            quality=7,
+            macro_block_size=8,
+            ffmpeg_log_level="error",
+        )
         try:
             for frame in frames:
                 writer.append_data(frame)

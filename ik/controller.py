@@ -115,12 +115,11 @@ class EndEffectorController:
         try:
             self._arm_act = np.array([model.actuator(prefix + a).id for a in cfg.arm_actuators])
             self._finger_act = model.actuator(prefix + cfg.finger_actuator).id
-            self._arm_qadr = np.array(
-                [model.joint(prefix + j).qposadr[0] for j in cfg.arm_joints]
-            )
+            self._arm_qadr = np.array([model.joint(prefix + j).qposadr[0] for j in cfg.arm_joints])
             self._site = model.site(prefix + cfg.site).id
             self._finger_qadr = np.array(
-                [model.joint(prefix + j).qposadr[0] for j in cfg.finger_joints])
+                [model.joint(prefix + j).qposadr[0] for j in cfg.finger_joints]
+            )
         except KeyError as err:
             raise ValueError(
                 f"the scene has no robot element {err}; it needs joints {cfg.arm_joints}, "
@@ -130,7 +129,9 @@ class EndEffectorController:
         self._bound_model = model
 
     # -- controller state -------------------------------------------------------------
-    def reset(self, data: mujoco.MjData, pose_slice: slice, q_arm: np.ndarray, finger: float) -> None:
+    def reset(
+        self, data: mujoco.MjData, pose_slice: slice, q_arm: np.ndarray, finger: float
+    ) -> None:
         """Put the arm at ``q_arm`` at rest and make the commanded pose its current pose."""
         data.qpos[self._arm_qadr] = q_arm
         data.qpos[self._finger_qadr] = finger
@@ -185,8 +186,9 @@ class EndEffectorController:
         """(configuration, tasks, limits) of the QP ``apply`` would solve now (benchmarks)."""
         self._configuration.update(self._ik_q(data.ctrl[self._arm_act]))
         pose = data.userdata[pose_slice]
-        self._frame_task.set_target(mink.SE3.from_rotation_and_translation(
-            mink.SO3(wxyz=pose[3:7].copy()), pose[:3].copy()))
+        self._frame_task.set_target(
+            mink.SE3.from_rotation_and_translation(mink.SO3(wxyz=pose[3:7].copy()), pose[:3].copy())
+        )
         return self._configuration, self._tasks, self._limits
 
     def _ik_q(self, q_arm: np.ndarray) -> np.ndarray:
@@ -198,13 +200,18 @@ class EndEffectorController:
         cfg = self.config
         configuration = self._configuration
         configuration.update(self._ik_q(data.ctrl[self._arm_act]))
-        self._frame_task.set_target(mink.SE3.from_rotation_and_translation(
-            mink.SO3(wxyz=pose[3:7].copy()), pose[:3].copy()))
+        self._frame_task.set_target(
+            mink.SE3.from_rotation_and_translation(mink.SO3(wxyz=pose[3:7].copy()), pose[:3].copy())
+        )
         try:
             for _ in range(cfg.ik_iterations):
                 v = mink.solve_ik(
-                    configuration, self._tasks, cfg.control_dt, cfg.solver,
-                    damping=cfg.damping, limits=self._limits,
+                    configuration,
+                    self._tasks,
+                    cfg.control_dt,
+                    cfg.solver,
+                    damping=cfg.damping,
+                    limits=self._limits,
                 )
                 configuration.integrate_inplace(v, cfg.control_dt)
         except mink.NoSolutionFound:

@@ -118,11 +118,15 @@ class MujocoEnv(abc.ABC):
         world = World.from_xml(layout.xml, self.controller_config)
         m, d = world.model, world.data
         mujoco.mj_resetData(m, d)
-        world.controller.reset(d, POSE_SLICE, np.asarray(self.controller_config.home_qpos),
-                               self.controller_config.finger_open)
+        world.controller.reset(
+            d,
+            POSE_SLICE,
+            np.asarray(self.controller_config.home_qpos),
+            self.controller_config.finger_open,
+        )
         for joint, q in (layout.init_qpos or {}).items():
             adr = m.joint(joint).qposadr[0]
-            d.qpos[adr: adr + len(q)] = q
+            d.qpos[adr : adr + len(q)] = q
         for idx, value in (layout.init_userdata or {}).items():
             d.userdata[idx] = value
         mujoco.mj_forward(m, d)
@@ -151,7 +155,8 @@ class MujocoEnv(abc.ABC):
         low, high = self.action_low, self.action_high
         if a.shape != low.shape:
             raise InvalidActionError(
-                f"{self.name}: action must have shape {low.shape}, got {a.shape}")
+                f"{self.name}: action must have shape {low.shape}, got {a.shape}"
+            )
         if not np.all(np.isfinite(a)):
             raise InvalidActionError(f"{self.name}: action contains NaN or inf: {a.tolist()}")
         return np.clip(a, low, high)
@@ -160,8 +165,9 @@ class MujocoEnv(abc.ABC):
         features = self.extract_features(world, objects)
         return State(features, SimState(world, world.save()))
 
-    def render(self, states: Sequence[State], camera: str = "overview", width: int = 640,
-               height: int = 480):
+    def render(
+        self, states: Sequence[State], camera: str = "overview", width: int = 640, height: int = 480
+    ):
         from mj_envs.render import render_states
 
         return render_states(states, camera, width, height)

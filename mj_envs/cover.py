@@ -128,21 +128,43 @@ class CoverEnv(MujocoEnv):
         region_spans = [(by - w / 2, by + w / 2) for by, w in zip(bys, widths)]
         region_spans += [(ty - TARGET_REGION_HALF, ty + TARGET_REGION_HALF) for ty in tys]
         for i, (lo, hi) in enumerate(region_spans):
-            wb.add("geom", name=f"region{i}", type="box", contype=0, conaffinity=0,
-                   size=(REGION_X_HALF, (hi - lo) / 2, 0.0004),
-                   pos=(LINE_X, (lo + hi) / 2, 0.0004), rgba=(0.95, 0.85, 0.2, 0.45))
+            wb.add(
+                "geom",
+                name=f"region{i}",
+                type="box",
+                contype=0,
+                conaffinity=0,
+                size=(REGION_X_HALF, (hi - lo) / 2, 0.0004),
+                pos=(LINE_X, (lo + hi) / 2, 0.0004),
+                rgba=(0.95, 0.85, 0.2, 0.45),
+            )
         for i, (ty, tw) in enumerate(zip(tys, twidths)):
-            wb.add("geom", name=f"target{i}", type="box", contype=0, conaffinity=0,
-                   size=(0.03, tw / 2, 0.0008), pos=(LINE_X, ty, 0.0008),
-                   rgba=(0.2, 0.75, 0.3, 1))
+            wb.add(
+                "geom",
+                name=f"target{i}",
+                type="box",
+                contype=0,
+                conaffinity=0,
+                size=(0.03, tw / 2, 0.0008),
+                pos=(LINE_X, ty, 0.0008),
+                rgba=(0.2, 0.75, 0.3, 1),
+            )
         colours = [(0.85, 0.25, 0.2, 1), (0.2, 0.4, 0.85, 1)]
         for i, (by, w) in enumerate(zip(bys, widths)):
             body = wb.add("body", name=f"block{i}", pos=(LINE_X, by, BLOCK_HEIGHT / 2))
             body.add("freejoint", name=f"block{i}_joint")
-            body.add("geom", name=f"block{i}_geom", type="box",
-                     size=(BLOCK_DEPTH / 2, w / 2, BLOCK_HEIGHT / 2), mass=BLOCK_MASS,
-                     rgba=colours[i % 2], contype=OBJECT_CONTYPE,
-                     conaffinity=OBJECT_CONAFFINITY, friction=(1.0, 0.02, 0.001), condim=4)
+            body.add(
+                "geom",
+                name=f"block{i}_geom",
+                type="box",
+                size=(BLOCK_DEPTH / 2, w / 2, BLOCK_HEIGHT / 2),
+                mass=BLOCK_MASS,
+                rgba=colours[i % 2],
+                contype=OBJECT_CONTYPE,
+                conaffinity=OBJECT_CONAFFINITY,
+                friction=(1.0, 0.02, 0.001),
+                condim=4,
+            )
 
         robot = Object("robot", ROBOT)
         blocks = [Object(f"block{i}", BLOCK) for i in range(N_BLOCKS)]
@@ -191,10 +213,17 @@ class CoverEnv(MujocoEnv):
                 g = m.geom(f"{obj.name}_geom").id
                 x, y, z = d.geom_xpos[g]
                 grasped = touching(g, ids["left_pad"]) and touching(g, ids["right_pad"])
-                out[obj] = np.array([
-                    x, y, z, 2 * m.geom_size[g][1], 2 * m.geom_size[g][2],
-                    float(grasped), float(touching(g, ids["table"])),
-                ])
+                out[obj] = np.array(
+                    [
+                        x,
+                        y,
+                        z,
+                        2 * m.geom_size[g][1],
+                        2 * m.geom_size[g][2],
+                        float(grasped),
+                        float(touching(g, ids["table"])),
+                    ]
+                )
             elif obj.type == TARGET:
                 g = m.geom(obj.name).id
                 out[obj] = np.array([d.geom_xpos[g][0], d.geom_xpos[g][1], 2 * m.geom_size[g][1]])
@@ -222,8 +251,7 @@ class CoverEnv(MujocoEnv):
         if abs(x - LINE_X) > REGION_X_HALF:
             return False
         return any(
-            state.get(r, "y_lo") <= y <= state.get(r, "y_hi")
-            for r in state.objects_of_type(REGION)
+            state.get(r, "y_lo") <= y <= state.get(r, "y_hi") for r in state.objects_of_type(REGION)
         )
 
 

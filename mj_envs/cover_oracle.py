@@ -38,7 +38,9 @@ def at(state: State, robot: Object, goal_xyz: np.ndarray, tol: float = POS_TOL) 
     return bool(np.all(np.abs(state.data[robot][:3] - goal_xyz) <= tol))
 
 
-def sample_grasp_offset(state: State, block: Object, target: Object, rng: np.random.Generator) -> float:
+def sample_grasp_offset(
+    state: State, block: Object, target: Object, rng: np.random.Generator
+) -> float:
     """A hand-minus-block y offset from which a release in the target region covers it."""
     bw = state.get(block, "width")
     tw = state.get(target, "width")
@@ -88,7 +90,9 @@ class CoverDemonstrator:
                 return atom
         return None
 
-    def _plan_atom(self, state: State, atom: GroundAtom) -> list[Callable[[State], np.ndarray | None]]:
+    def _plan_atom(
+        self, state: State, atom: GroundAtom
+    ) -> list[Callable[[State], np.ndarray | None]]:
         block, target = atom.objects
         assert block.type == BLOCK and target.type == TARGET
         robot = self.robot
@@ -124,13 +128,19 @@ class CoverDemonstrator:
 
         def lower(s: State) -> np.ndarray | None:
             if s.get(block, "on_table") > 0.5:
-                closing["release"] = np.array([
-                    LINE_X, release_hand_y(s, robot, block, target), s.get(robot, "z") + RELEASE_LIFT])
+                closing["release"] = np.array(
+                    [
+                        LINE_X,
+                        release_hand_y(s, robot, block, target),
+                        s.get(robot, "z") + RELEASE_LIFT,
+                    ]
+                )
                 return None
             # hand height that puts the block's bottom 1 mm into the table
             drop = s.get(block, "z") - s.get(block, "height") / 2 + 0.001
-            goal = np.array([LINE_X, release_hand_y(s, robot, block, target),
-                             s.get(robot, "z") - drop])
+            goal = np.array(
+                [LINE_X, release_hand_y(s, robot, block, target), s.get(robot, "z") - drop]
+            )
             return move_action(s, robot, goal)
 
         def open_(s: State) -> np.ndarray | None:
@@ -140,8 +150,7 @@ class CoverDemonstrator:
             # leads the measured one, and pushing on would slide the block up the pads
             return move_action(s, robot, closing["release"], grip=1.0)
 
-        return [lift, go(above_grasp), go(grasp_point), close, lift,
-                carry, lower, open_, lift]
+        return [lift, go(above_grasp), go(grasp_point), close, lift, carry, lower, open_, lift]
 
 
 def demonstrator(task: Task, rng: np.random.Generator) -> CoverDemonstrator:

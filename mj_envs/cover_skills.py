@@ -14,23 +14,39 @@ import numpy as np
 
 from bpns.structs import LiftedAtom, Object, Skill, State, STRIPSOperator, Variable
 from mj_envs.cover import (
-    BLOCK, COVERS, HAND_EMPTY, HOLDING, IS_BLOCK, IS_TARGET, LINE_X, ROBOT, TARGET,
+    BLOCK,
+    COVERS,
+    HAND_EMPTY,
+    HOLDING,
+    IS_BLOCK,
+    IS_TARGET,
+    LINE_X,
+    ROBOT,
+    TARGET,
 )
 from mj_envs.cover_oracle import (
-    GAIN, GRASP_Z_ABOVE_CENTRE, PAD_CLEARANCE, POS_TOL, SAFE_Z, release_hand_y,
+    GAIN,
+    GRASP_Z_ABOVE_CENTRE,
+    PAD_CLEARANCE,
+    POS_TOL,
+    SAFE_Z,
+    release_hand_y,
 )
 
 _R, _B, _T = Variable("?robot", ROBOT), Variable("?block", BLOCK), Variable("?target", TARGET)
 PICK = STRIPSOperator(
-    "Pick", (_R, _B),
+    "Pick",
+    (_R, _B),
     frozenset({LiftedAtom(HAND_EMPTY, (_R,)), LiftedAtom(IS_BLOCK, (_B,))}),
     frozenset({LiftedAtom(HOLDING, (_B,))}),
     frozenset({LiftedAtom(HAND_EMPTY, (_R,))}),
 )
 PLACE = STRIPSOperator(
-    "Place", (_R, _B, _T),
-    frozenset({LiftedAtom(HOLDING, (_B,)), LiftedAtom(IS_BLOCK, (_B,)),
-               LiftedAtom(IS_TARGET, (_T,))}),
+    "Place",
+    (_R, _B, _T),
+    frozenset(
+        {LiftedAtom(HOLDING, (_B,)), LiftedAtom(IS_BLOCK, (_B,)), LiftedAtom(IS_TARGET, (_T,))}
+    ),
     frozenset({LiftedAtom(HAND_EMPTY, (_R,)), LiftedAtom(COVERS, (_B, _T))}),
     frozenset({LiftedAtom(HOLDING, (_B,))}),
 )
@@ -55,8 +71,13 @@ class PickPolicy:
 
     def __call__(self, state: State, objects: Sequence[Object], subgoal: np.ndarray) -> np.ndarray:
         robot, block = objects
-        grasp = np.array([state.get(block, "x"), subgoal[1],
-                          state.get(block, "height") / 2 + GRASP_Z_ABOVE_CENTRE])
+        grasp = np.array(
+            [
+                state.get(block, "x"),
+                subgoal[1],
+                state.get(block, "height") / 2 + GRASP_Z_ABOVE_CENTRE,
+            ]
+        )
         move = _travel(state, robot, grasp[:2], grip=1.0)
         if move is not None and state.get(robot, "fingers") > 0.03:
             return move
@@ -68,7 +89,9 @@ class PickPolicy:
 class PickSampler:
     """Grasp anywhere along the block's width (the pads fully on it)."""
 
-    def __call__(self, state: State, objects: Sequence[Object], rng: np.random.Generator) -> np.ndarray:
+    def __call__(
+        self, state: State, objects: Sequence[Object], rng: np.random.Generator
+    ) -> np.ndarray:
         robot, block = objects
         sub = state.vec(objects).copy()
         lim = state.get(block, "width") / 2 - PAD_CLEARANCE
@@ -95,7 +118,9 @@ class PlacePolicy:
 class PlaceSampler:
     """Release with the hand inside the target's region so the held block covers it."""
 
-    def __call__(self, state: State, objects: Sequence[Object], rng: np.random.Generator) -> np.ndarray:
+    def __call__(
+        self, state: State, objects: Sequence[Object], rng: np.random.Generator
+    ) -> np.ndarray:
         robot, block, target = objects
         sub = state.vec(objects).copy()
         sub[1] = release_hand_y(state, robot, block, target) + rng.uniform(-0.002, 0.002)

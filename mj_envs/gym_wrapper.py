@@ -24,8 +24,13 @@ GYM_IDS = {"cover": "bpns/Cover-v0"}
 class BPNSGymEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
 
-    def __init__(self, env_name: str = "cover", train: bool = True,
-                 render_mode: str | None = None, camera: str = "overview") -> None:
+    def __init__(
+        self,
+        env_name: str = "cover",
+        train: bool = True,
+        render_mode: str | None = None,
+        camera: str = "overview",
+    ) -> None:
         from mj_envs.registry import make_env
 
         self.env: MujocoEnv = make_env(env_name)
@@ -33,12 +38,16 @@ class BPNSGymEnv(gym.Env):
         self.render_mode = render_mode
         self.camera = camera
         types = {t.name: t for t in self.env.types}
-        self._slots = [(types[name], k) for name in sorted(self.env.max_objects)
-                       for k in range(self.env.max_objects[name])]
+        self._slots = [
+            (types[name], k)
+            for name in sorted(self.env.max_objects)
+            for k in range(self.env.max_objects[name])
+        ]
         size = sum(t.dim for t, _ in self._slots)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (size,), np.float64)
-        self.action_space = gym.spaces.Box(self.env.action_low, self.env.action_high,
-                                           dtype=np.float64)
+        self.action_space = gym.spaces.Box(
+            self.env.action_low, self.env.action_high, dtype=np.float64
+        )
         self._task: Task | None = None
         self._state: State | None = None
         self._t = 0
@@ -67,8 +76,7 @@ class BPNSGymEnv(gym.Env):
         self._t += 1
         done = self._task.goal_holds(abstract(self._state, self.env.goal_predicates))
         truncated = not done and self._t >= self._task.horizon
-        return (self._obs(self._state), float(done), done, truncated,
-                self._info())
+        return (self._obs(self._state), float(done), done, truncated, self._info())
 
     def _info(self) -> dict[str, Any]:
         return {"goal": sorted(map(str, self._task.goal))}
@@ -86,5 +94,6 @@ class BPNSGymEnv(gym.Env):
 def register_gymnasium_envs() -> None:
     for name, gym_id in GYM_IDS.items():
         if gym_id not in gym.registry:
-            gym.register(id=gym_id, entry_point="mj_envs.gym_wrapper:BPNSGymEnv",
-                         kwargs={"env_name": name})
+            gym.register(
+                id=gym_id, entry_point="mj_envs.gym_wrapper:BPNSGymEnv", kwargs={"env_name": name}
+            )

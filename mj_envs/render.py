@@ -23,8 +23,9 @@ def _check_backend() -> None:
         raise RenderingUnavailable(OSMESA_HINT)
 
 
-def render_states(states: Sequence[State], camera: str = "overview", width: int = 640,
-                  height: int = 480) -> Iterator[np.ndarray]:
+def render_states(
+    states: Sequence[State], camera: str = "overview", width: int = 640, height: int = 480
+) -> Iterator[np.ndarray]:
     """Yield one RGB frame per state; the renderer is always closed afterwards."""
     if not states:
         return
@@ -37,7 +38,9 @@ def render_states(states: Sequence[State], camera: str = "overview", width: int 
     try:
         renderer = mujoco.Renderer(world.model, height=height, width=width)
     except Exception as err:  # noqa: BLE001  (MuJoCo raises bare errors when GL is missing)
-        raise RenderingUnavailable(f"could not start an OpenGL context ({err}); {OSMESA_HINT}") from None
+        raise RenderingUnavailable(
+            f"could not start an OpenGL context ({err}); {OSMESA_HINT}"
+        ) from None
     # OSMesa renders in software: shadows and reflections would triple the cost per frame
     renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
     renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0

@@ -39,31 +39,63 @@ def make_arena(model_name: str, nuserdata: int, timestep: float = 0.002) -> mjcf
     getattr(arena.visual, "global").offwidth = 1280
     getattr(arena.visual, "global").offheight = 960
     arena.asset.add(
-        "texture", name="sky", type="skybox", builtin="gradient",
-        rgb1=(0.55, 0.68, 0.82), rgb2=(0.1, 0.12, 0.16), width=256, height=256,
+        "texture",
+        name="sky",
+        type="skybox",
+        builtin="gradient",
+        rgb1=(0.55, 0.68, 0.82),
+        rgb2=(0.1, 0.12, 0.16),
+        width=256,
+        height=256,
     )
     arena.asset.add(
-        "texture", name="floor_tex", type="2d", builtin="checker",
-        rgb1=(0.28, 0.3, 0.33), rgb2=(0.22, 0.24, 0.27), width=256, height=256,
+        "texture",
+        name="floor_tex",
+        type="2d",
+        builtin="checker",
+        rgb1=(0.28, 0.3, 0.33),
+        rgb2=(0.22, 0.24, 0.27),
+        width=256,
+        height=256,
     )
     arena.asset.add("material", name="floor_mat", texture="floor_tex", texrepeat=(6, 6))
     arena.asset.add(
-        "texture", name="wood", type="2d", builtin="flat", rgb1=(0.62, 0.5, 0.38),
-        width=64, height=64,
+        "texture",
+        name="wood",
+        type="2d",
+        builtin="flat",
+        rgb1=(0.62, 0.5, 0.38),
+        width=64,
+        height=64,
     )
     arena.asset.add("material", name="table_mat", texture="wood", specular=0.1)
     wb = arena.worldbody
     wb.add("light", name="key", pos=(0.6, -0.8, 1.8), dir=(-0.2, 0.5, -1), diffuse=(0.6, 0.6, 0.6))
-    wb.add("geom", name="floor", type="plane", size=(3, 3, 0.1), pos=(0, 0, -0.75),
-           material="floor_mat", contype=0, conaffinity=0)
     wb.add(
-        "geom", name="table", type="box", size=TABLE_SIZE,
-        pos=(TABLE_CENTER_X, 0, -TABLE_SIZE[2]), material="table_mat",
-        contype=OBJECT_CONTYPE, conaffinity=OBJECT_CONAFFINITY, friction=(0.6, 0.02, 0.001),
+        "geom",
+        name="floor",
+        type="plane",
+        size=(3, 3, 0.1),
+        pos=(0, 0, -0.75),
+        material="floor_mat",
+        contype=0,
+        conaffinity=0,
+    )
+    wb.add(
+        "geom",
+        name="table",
+        type="box",
+        size=TABLE_SIZE,
+        pos=(TABLE_CENTER_X, 0, -TABLE_SIZE[2]),
+        material="table_mat",
+        contype=OBJECT_CONTYPE,
+        conaffinity=OBJECT_CONAFFINITY,
+        friction=(0.6, 0.02, 0.001),
     )
     focus = wb.add("body", name="workspace_focus", pos=(0.45, 0.0, 0.12))
-    wb.add("camera", name="overview", pos=(1.2, -0.8, 0.78), mode="targetbody",
-           target=focus, fovy=45)
+    wb.add(
+        "camera", name="overview", pos=(1.2, -0.8, 0.78), mode="targetbody", target=focus, fovy=45
+    )
     wb.add("camera", name="front", pos=(1.6, 0.0, 0.55), mode="targetbody", target=focus, fovy=40)
     wb.add("camera", name="top", pos=(0.5, 0.0, 1.6), quat=(0.7071068, 0, 0, 0.7071068), fovy=45)
     arena.attach(mjcf.from_xml_string(_panda_xml(), model_dir=str(ASSETS_DIR)))

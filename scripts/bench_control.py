@@ -50,32 +50,46 @@ def main() -> None:
 
     # raw MuJoCo: substeps of mj_step from the task's initial state
     world.load(task.init.sim.flat)
+
     def raw_substeps(_: int) -> None:
         for _ in range(world.substeps):
             mujoco.mj_step(m, d)
+
     raw_sub = median_us(raw_substeps, args.steps)
 
     # raw mink: the QP our controller solves, at the commanded configuration
     ctrl = world.controller
     world.load(task.init.sim.flat)
     conf, tasks, limits = ctrl.reference_qp(d, POSE_SLICE)
+
     def raw_qp(_: int) -> None:
-        mink.solve_ik(conf, tasks, ctrl.config.control_dt, ctrl.config.solver,
-                      damping=ctrl.config.damping, limits=limits)
+        mink.solve_ik(
+            conf,
+            tasks,
+            ctrl.config.control_dt,
+            ctrl.config.solver,
+            damping=ctrl.config.damping,
+            limits=limits,
+        )
+
     raw_q = median_us(raw_qp, args.steps)
 
     # our control step: IK + substeps + contact refresh
     world.load(task.init.sim.flat)
+
     def control_step(i: int) -> None:
         a = actions[i]
         ctrl.apply(d, POSE_SLICE, a[:3], None, a[3])
         world.step_physics()
+
     ours = median_us(control_step, args.steps)
 
     # the whole transition function
     state = {"s": task.init}
+
     def simulate(i: int) -> None:
         state["s"] = env.simulate(state["s"], actions[i])
+
     full = median_us(simulate, args.steps)
 
     ratio = ours / (raw_q + raw_sub)

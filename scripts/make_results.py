@@ -70,13 +70,26 @@ def main() -> None:
         print(f"oracle cover {rows[-1][0]}: {ok}/{args.tasks} in {dt:.0f} s", flush=True)
     rep = replay_check("cover", args.replay, args.seed + 1, args.workers)
     print(f"replay: {rep}", flush=True)
-    bench = json.loads(subprocess.run(
-        [sys.executable, str(ROOT / "scripts" / "bench_control.py"), "--json"],
-        check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1])
+    bench = json.loads(
+        subprocess.run(
+            [sys.executable, str(ROOT / "scripts" / "bench_control.py"), "--json"],
+            check=True,
+            capture_output=True,
+            text=True,
+        )
+        .stdout.strip()
+        .splitlines()[-1]
+    )
     print(f"bench: {bench}", flush=True)
 
-    cmd = " ".join(["python scripts/make_results.py", f"--tasks {args.tasks}",
-                    f"--replay {args.replay}", f"--workers {args.workers}"])
+    cmd = " ".join(
+        [
+            "python scripts/make_results.py",
+            f"--tasks {args.tasks}",
+            f"--replay {args.replay}",
+            f"--workers {args.workers}",
+        ]
+    )
     lines = [
         "# Measured results",
         "",
@@ -89,8 +102,11 @@ def main() -> None:
         "",
         "| tasks | solved | rate | wall time |",
         "|---|---|---|---|",
-        *[f"| {name} (seed {args.seed}) | {ok}/{n} | {100 * ok / n:.1f} % | {dt:.0f} s "
-          f"({args.workers} workers) |" for name, ok, n, dt in rows],
+        *[
+            f"| {name} (seed {args.seed}) | {ok}/{n} | {100 * ok / n:.1f} % | {dt:.0f} s "
+            f"({args.workers} workers) |"
+            for name, ok, n, dt in rows
+        ],
         "",
         "## Exact replay of saved demonstrations",
         "",

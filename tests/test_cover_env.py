@@ -29,8 +29,9 @@ def test_pickle_round_trip_then_step_is_bit_identical(cover_env, rng):
         s = cover_env.simulate(s, act)
     copy = pickle.loads(pickle.dumps(s))
     act = np.array([0.01, -0.01, 0.0, -1.0])
-    assert np.array_equal(cover_env.simulate(s, act).sim.flat,
-                          cover_env.simulate(copy, act).sim.flat)
+    assert np.array_equal(
+        cover_env.simulate(s, act).sim.flat, cover_env.simulate(copy, act).sim.flat
+    )
 
 
 def _pads_touching(state, block):
@@ -59,11 +60,14 @@ def test_holding_flips_with_both_pad_contacts_and_back_after_release(cover_demos
     # after release the contact list no longer has both pads and Holding is false again
     assert not held[last + 1]
     assert len(_pads_touching(demo.states[last + 1], block)) < 2
-    assert demo.task.goal <= abstract(demo.states[-1], demo.task.goal and
-                                      {a.predicate for a in demo.task.goal})
+    assert demo.task.goal <= abstract(
+        demo.states[-1], demo.task.goal and {a.predicate for a in demo.task.goal}
+    )
 
 
-@pytest.mark.parametrize("bad", [np.array([np.nan, 0, 0, 0]), np.zeros(3), np.array([0, 0, np.inf, 0])])
+@pytest.mark.parametrize(
+    "bad", [np.array([np.nan, 0, 0, 0]), np.zeros(3), np.array([0, 0, np.inf, 0])]
+)
 def test_bad_actions_raise_one_clear_error(cover_env, bad):
     s = cover_env.task(0, 2, True).init
     with pytest.raises(InvalidActionError, match="action"):

@@ -62,8 +62,9 @@ def test_orientation_is_kept_without_orientation_deltas(cover_env):
     sid = world.model.site("panda/grip_site").id
     r0 = world.data.site_xmat[sid].copy()
     for k in range(40):
-        world.controller.apply(world.data, POSE_SLICE, np.array([0.01, -0.01 * (k % 3), 0.0]),
-                               None, 0.0)
+        world.controller.apply(
+            world.data, POSE_SLICE, np.array([0.01, -0.01 * (k % 3), 0.0]), None, 0.0
+        )
         world.step_physics()
     for _ in range(10):
         world.controller.apply(world.data, POSE_SLICE, np.zeros(3), None, 0.0)
