@@ -53,6 +53,7 @@ def domain_pddl(
     operators: Iterable[STRIPSOperator],
 ) -> str:
     """A PDDL domain with one typed STRIPS action per operator, deterministic order."""
+    types, predicates, operators = tuple(types), tuple(predicates), tuple(operators)
     tnames, pnames, anames = _Names("type"), _Names("predicate"), _Names("operator")
     all_types = sorted(set(types) | {t for p in predicates for t in p.types})
     all_types += sorted({v.type for op in operators for v in op.parameters} - set(all_types))
@@ -62,9 +63,10 @@ def domain_pddl(
     lines = [
         f"(define (domain {pddl_name(name)})",
         "  (:requirements :strips :typing)",
-        f"  (:types {' '.join(declared)} - object)" if declared else "  (:types)",
-        "  (:predicates",
     ]
+    if declared:
+        lines.append(f"  (:types {' '.join(declared)} - object)")
+    lines.append("  (:predicates")
     for p in preds:
         args = " ".join(f"?x{i} - {type_names[t]}" for i, t in enumerate(p.types))
         lines.append(f"    ({pnames(p.name)}{' ' + args if args else ''})")

@@ -1,0 +1,275 @@
+"""Save and load learned skills; describe them for people.
+
+Layout of a skills directory:
+    skills.json          format version, types, predicates, config, stats and every
+                         operator in readable form (names of predicates, types, variables)
+    <Op>.policy.npz      policy weights and scope dimensions
+    <Op>.sampler.npz     sampler weights (absent for skills without subgoals)
+
+Predicates are classifiers (code), so they are not saved: loading binds the saved
+predicate and type *names* to the environment's objects and refuses a mismatch.
+The directory is written next to its destination and renamed into place, so a crash
+never leaves a half-written skills directory behind.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bpns.learning.config import LearningConfig, MLPConfig
+from bpns.learning.pipeline import LearnedSkills, LearningStats, SkillStats
+from bpns.learning.policies import LearnedPolicy
+from bpns.learning.samplers import CurrentStateSampler, LearnedSampler
+from bpns.structs import LiftedAtom, Predicate, Skill, STRIPSOperator, Type, Variable
+
+FORMAT = "bpns-skills"
+VERSION = 1
+INDEX = "skills.json"
+
+
+class ArtifactError(ValueError):
+    """A skills directory that cannot be loaded against the given environment."""
+
+
+# ---------------------------------------------------------------------------------- save
+
+
+def save_skills(
+    skills: LearnedSkills, directory: str | os.PathLike, overwrite: bool = False
+) -> Path:
+    """Write ``skills`` to ``directory`` atomically; returns the directory path."""
+    target = Path(directory)
+    if target.exists() and not overwrite:
+        raise FileExistsError(f"{target} exists; pass overwrite=True to replace it")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=target.parent))
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes 0700; skills are shared like any directory
+    try:
+        entries = []
+        for skill in skills.skills:
+            entries.append(_write_skill(skill, tmp))
+        index = {
+            "format": FORMAT,
+            "version": VERSION,
+            "types": [
+                {"name": t.name, "features": list(t.feature_names)} for t in sorted(skills.types)
+            ],
+            "predicates": [
+                {"name": p.name, "types": [t.name for t in p.types]}
+                for p in sorted(skills.predicates)
+            ],
+            "config": dataclasses.asdict(skills.config),
+            "stats": None if skills.stats is None else dataclasses.asdict(skills.stats),
+            "skills": entries,
+        }
+        (tmp / INDEX).write_text(json.dumps(index, indent=2) + "\n")
+        _replace_dir(tmp, target)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return target
+
+
+def _write_skill(skill: Skill, directory: Path) -> dict[str, Any]:
+    op = skill.operator
+    if not isinstance(skill.policy, LearnedPolicy):
+        raise TypeError(f"{op.name}: only LearnedPolicy can be saved, got {type(skill.policy)}")
+    policy_file = f"{op.name}.policy.npz"
+    np.savez(directory / policy_file, **skill.policy.to_arrays())
+    entry: dict[str, Any] = {
+        "name": op.name,
+        "parameters": [[v.name, v.type.name] for v in op.parameters],
+        "preconditions": _atoms_json(op.preconditions),
+        "add_effects": _atoms_json(op.add_effects),
+        "delete_effects": _atoms_json(op.delete_effects),
+        "policy": policy_file,
+    }
+    if isinstance(skill.sampler, LearnedSampler):
+        entry["sampler"] = f"{op.name}.sampler.npz"
+        np.savez(directory / entry["sampler"], **skill.sampler.to_arrays())
+    elif isinstance(skill.sampler, CurrentStateSampler):
+        entry["sampler"] = None
+    else:
+        raise TypeError(f"{op.name}: cannot save a sampler of type {type(skill.sampler)}")
+    return entry
+
+
+def _atoms_json(atoms: Iterable[LiftedAtom]) -> list[list[Any]]:
+    return [[a.predicate.name, [v.name for v in a.variables]] for a in sorted(atoms)]
+
+
+def _replace_dir(tmp: Path, target: Path) -> None:
+    """Rename ``tmp`` to ``target``, replacing an existing directory."""
+    if not target.exists():
+        os.replace(tmp, target)
+        return
+    old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
+    os.replace(target, old / target.name)
+    os.replace(tmp, target)
+    shutil.rmtree(old, ignore_errors=True)
+
+
+# ---------------------------------------------------------------------------------- load
+
+
+def load_skills(
+    directory: str | os.PathLike, predicates: Iterable[Predicate], types: Iterable[Type]
+) -> LearnedSkills:
+    """Load skills saved by :func:`save_skills`, binding names to the given predicates
+    and types. Raises :class:`ArtifactError` naming whatever does not match."""
+    directory = Path(directory)
+    index_path = directory / INDEX
+    if not index_path.is_file():
+        raise ArtifactError(f"{directory} is not a skills directory (no {INDEX})")
+    index = json.loads(index_path.read_text())
+    if index.get("format") != FORMAT or index.get("version") != VERSION:
+        raise ArtifactError(
+            f"{index_path}: unsupported format {index.get('format')!r} "
+            f"version {index.get('version')!r} (expected {FORMAT!r} version {VERSION})"
+        )
+    type_map = _bind_types(index["types"], types, directory)
+    pred_map = _bind_predicates(index["predicates"], predicates, type_map, directory)
+    skills = tuple(_read_skill(e, directory, pred_map, type_map) for e in index["skills"])
+    return LearnedSkills(
+        skills=skills,
+        predicates=frozenset(pred_map.values()),
+        config=_config_from_json(index["config"]),
+        stats=None if index.get("stats") is None else _stats_from_json(index["stats"]),
+    )
+
+
+def _bind_types(saved: list[dict], types: Iterable[Type], where: Path) -> dict[str, Type]:
+    available = {t.name: t for t in types}
+    out = {}
+    for entry in saved:
+        name, features = entry["name"], tuple(entry["features"])
+        if name not in available:
+            raise ArtifactError(
+                f"skills in {where} use type {name!r}, which the environment does not have "
+                f"(it has {sorted(available)})"
+            )
+        if available[name].feature_names != features:
+            raise ArtifactError(
+                f"skills in {where} expect type {name!r} with features {list(features)}, the "
+                f"environment's has {list(available[name].feature_names)}"
+            )
+        out[name] = available[name]
+    return out
+
+
+def _bind_predicates(
+    saved: list[dict], predicates: Iterable[Predicate], type_map: Mapping[str, Type], where: Path
+) -> dict[str, Predicate]:
+    available = {p.name: p for p in predicates}
+    out = {}
+    for entry in saved:
+        name = entry["name"]
+        if name not in available:
+            raise ArtifactError(
+                f"skills in {where} use predicate {name!r}, which the environment does not "
+                f"provide (it provides {sorted(available)})"
+            )
+        pred = available[name]
+        if [t.name for t in pred.types] != entry["types"] or any(
+            type_map[t.name] != t for t in pred.types
+        ):
+            raise ArtifactError(
+                f"skills in {where} expect predicate {name}{tuple(entry['types'])}, the "
+                f"environment's is {name}{tuple(t.name for t in pred.types)}"
+            )
+        out[name] = pred
+    return out
+
+
+def _read_skill(
+    entry: Mapping[str, Any],
+    directory: Path,
+    preds: Mapping[str, Predicate],
+    types: Mapping[str, Type],
+) -> Skill:
+    variables = {n: Variable(n, types[t]) for n, t in entry["parameters"]}
+
+    def atoms(key: str) -> frozenset[LiftedAtom]:
+        out = set()
+        for pname, args in entry[key]:
+            if pname not in preds:
+                raise ArtifactError(f"operator {entry['name']} uses unknown predicate {pname!r}")
+            out.add(LiftedAtom(preds[pname], tuple(variables[a] for a in args)))
+        return frozenset(out)
+
+    op = STRIPSOperator(
+        name=entry["name"],
+        parameters=tuple(variables[n] for n, _ in entry["parameters"]),
+        preconditions=atoms("preconditions"),
+        add_effects=atoms("add_effects"),
+        delete_effects=atoms("delete_effects"),
+    )
+    policy = LearnedPolicy.from_arrays(_npz(directory / entry["policy"]))
+    sampler: LearnedSampler | CurrentStateSampler
+    if entry["sampler"] is None:
+        sampler = CurrentStateSampler()
+    else:
+        sampler = LearnedSampler.from_arrays(_npz(directory / entry["sampler"]))
+    return Skill(op, policy, sampler)
+
+
+def _npz(path: Path) -> dict[str, np.ndarray]:
+    with np.load(path, allow_pickle=False) as data:
+        return {k: data[k] for k in data.files}
+
+
+def _config_from_json(d: Mapping[str, Any]) -> LearningConfig:
+    nets = {k: _mlp_config(d[k]) for k in ("policy", "generator", "classifier")}
+    fields = {f.name for f in dataclasses.fields(LearningConfig)}
+    rest = {k: v for k, v in d.items() if k in fields and k not in nets}
+    return LearningConfig(**rest, **nets)
+
+
+def _mlp_config(d: Mapping[str, Any]) -> MLPConfig:
+    return MLPConfig(**{**d, "hidden_sizes": tuple(d["hidden_sizes"])})
+
+
+def _stats_from_json(d: Mapping[str, Any]) -> LearningStats:
+    return LearningStats(
+        **{k: v for k, v in d.items() if k not in ("skills", "stage_seconds")},
+        skills=tuple(SkillStats(**s) for s in d["skills"]),
+        stage_seconds=tuple((str(k), float(v)) for k, v in d["stage_seconds"]),
+    )
+
+
+# ------------------------------------------------------------------------------ describe
+
+
+def describe(skills: LearnedSkills) -> str:
+    """A readable listing of the skills' operators (``bpns skills show``)."""
+    counts = {s.name: s.num_segments for s in skills.stats.skills} if skills.stats else {}
+    lines = [f"{len(skills.skills)} skills"]
+    if skills.stats is not None:
+        lines[0] += f" learned from {skills.stats.num_demos} demonstrations"
+        lines.append(f"  ({skills.stats})")
+    for skill in skills.skills:
+        lines.append("")
+        extra = []
+        if skill.name in counts:
+            extra.append(f"{counts[skill.name]} segments")
+        if isinstance(skill.sampler, CurrentStateSampler):
+            extra.append("no subgoals")
+        elif isinstance(skill.sampler, LearnedSampler) and skill.sampler.classifier_params is None:
+            extra.append("sampler without classifier")
+        header = str(skill.operator)
+        if extra:
+            first, _, rest = header.partition("\n")
+            header = f"{first}    [{', '.join(extra)}]\n{rest}"
+        lines.append(header)
+    return "\n".join(lines)

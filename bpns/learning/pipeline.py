@@ -1,0 +1,205 @@
+"""The whole learning pipeline: segment -> partition -> operators -> policies -> samplers.
+
+Each stage is a plain function in its own module and can be run alone; this module only
+chains them, derives one seed per network from the config seed, and records counts and
+wall-clock time per stage. Same demos, predicates and config give identical weights
+(for a fixed torch thread count).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Collection, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+import numpy as np
+
+from bpns.learning.config import LearningConfig
+from bpns.learning.operators import SkillDataset, learn_operators
+from bpns.learning.partition import SegmentGroup, partition_segments
+from bpns.learning.policies import ScopeDims, learn_policy, scope_trajectories
+from bpns.learning.samplers import (
+    CurrentStateSampler,
+    LearnedSampler,
+    sampler_training_data,
+    train_sampler,
+)
+from bpns.learning.segmentation import segment_demonstrations
+from bpns.structs import Demonstration, Predicate, Segment, Skill, STRIPSOperator, Type
+
+STAGES = ("segment", "partition", "operators", "policies", "samplers")
+
+
+@dataclass(frozen=True)
+class SkillStats:
+    """What one skill was learned from."""
+
+    name: str
+    num_segments: int
+    num_policy_samples: int
+    num_sampler_negatives: int
+
+
+@dataclass(frozen=True)
+class LearningStats:
+    """Counts and per-stage wall-clock seconds of one learning run."""
+
+    num_demos: int
+    num_transitions: int
+    num_segments: int
+    num_groups: int
+    num_dropped_groups: int
+    num_dropped_segments: int
+    skills: tuple[SkillStats, ...]
+    stage_seconds: tuple[tuple[str, float], ...]
+
+    @property
+    def total_seconds(self) -> float:
+        return sum(t for _, t in self.stage_seconds)
+
+    def __str__(self) -> str:
+        times = ", ".join(f"{k} {v:.1f}s" for k, v in self.stage_seconds)
+        return (
+            f"{self.num_demos} demos, {self.num_transitions} transitions "
+            f"-> {self.num_segments} segments "
+            f"-> {self.num_groups} groups, {self.num_dropped_groups} dropped "
+            f"({self.num_dropped_segments} segments) -> {len(self.skills)} skills; {times}"
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class LearnedSkills:
+    """The result of learning: skills plus what is needed to save and describe them."""
+
+    skills: tuple[Skill, ...]
+    predicates: frozenset[Predicate]
+    config: LearningConfig
+    stats: LearningStats | None = None
+
+    @property
+    def operators(self) -> tuple[STRIPSOperator, ...]:
+        return tuple(s.operator for s in self.skills)
+
+    @property
+    def types(self) -> frozenset[Type]:
+        """Types of the predicates and of the operators' parameters."""
+        found = {t for p in self.predicates for t in p.types}
+        found |= {v.type for op in self.operators for v in op.parameters}
+        return frozenset(found)
+
+    def skill(self, name: str) -> Skill:
+        for s in self.skills:
+            if s.name == name:
+                return s
+        raise KeyError(f"no skill named {name!r}; skills: {[s.name for s in self.skills]}")
+
+
+def derive_seed(seed: int, skill_index: int, role: int) -> int:
+    """Independent, reproducible seed per (skill, network role)."""
+    return int(np.random.SeedSequence([seed, skill_index, role]).generate_state(1)[0])
+
+
+_POLICY, _SAMPLER = 0, 1
+
+
+class _Timer:
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+
+    @contextmanager
+    def stage(self, name: str) -> Iterator[None]:
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.seconds[name] = self.seconds.get(name, 0.0) + time.perf_counter() - t0
+
+
+def learn_skills(
+    demos: Sequence[Demonstration],
+    predicates: Collection[Predicate],
+    contact_predicates: Collection[Predicate],
+    config: LearningConfig | None = None,
+    report: Callable[[str], None] | None = None,
+) -> LearnedSkills:
+    """Learn neuro-symbolic skills from demonstrations (paper §4).
+
+    ``report``, if given, receives one short progress message per stage and per skill
+    (for a CLI progress display); learning itself prints nothing.
+    """
+    config = LearningConfig() if config is None else config
+    say = report or (lambda message: None)
+    timer = _Timer()
+    say(f"segmenting {len(demos)} demonstrations")
+    with timer.stage("segment"):
+        segments = segment_demonstrations(demos, predicates, contact_predicates)
+    if not segments:
+        raise ValueError("the demonstrations contain no segment with effects: nothing to learn")
+    say(f"partitioning {len(segments)} segments")
+    with timer.stage("partition"):
+        groups = partition_segments(segments)
+    with timer.stage("operators"):
+        datasets = learn_operators(groups, config.min_segment_fraction)
+    say(f"{len(datasets)} operators from {len(groups)} groups")
+    skills: list[Skill] = []
+    skill_stats: list[SkillStats] = []
+    for k, dataset in enumerate(datasets):
+        say(f"training {dataset.operator.name} ({k + 1}/{len(datasets)}, {len(dataset)} segments)")
+        with timer.stage("policies"):
+            scopes = scope_trajectories(dataset)
+            dims = ScopeDims.from_scopes(scopes, config.change_tolerance)
+            policy = learn_policy(
+                dataset, config, derive_seed(config.seed, k, _POLICY), scopes, dims
+            )
+        with timer.stage("samplers"):
+            sampler: LearnedSampler | CurrentStateSampler
+            if config.use_subgoals:
+                seed = derive_seed(config.seed, k, _SAMPLER)
+                gen_x, gen_y, cls_data = sampler_training_data(
+                    dataset,
+                    scopes,
+                    dims,
+                    _other_segments(groups, dataset),
+                    config.max_negative_bindings_per_segment,
+                    seed,
+                )
+                sampler = train_sampler(
+                    gen_x,
+                    gen_y,
+                    cls_data,
+                    dims,
+                    config.generator,
+                    config.classifier,
+                    seed,
+                    config.max_rejection_tries,
+                )
+                negatives = int((cls_data[:, -1] == 0).sum())
+            else:
+                sampler, negatives = CurrentStateSampler(), 0
+        skills.append(Skill(dataset.operator, policy, sampler))
+        skill_stats.append(
+            SkillStats(dataset.operator.name, len(dataset), _num_samples(dataset), negatives)
+        )
+    kept = sum(len(d) for d in datasets)
+    stats = LearningStats(
+        num_demos=len(demos),
+        num_transitions=sum(len(d.actions) for d in demos),
+        num_segments=len(segments),
+        num_groups=len(groups),
+        num_dropped_groups=len(groups) - len(datasets),
+        num_dropped_segments=len(segments) - kept,
+        skills=tuple(skill_stats),
+        stage_seconds=tuple((s, timer.seconds.get(s, 0.0)) for s in STAGES),
+    )
+    return LearnedSkills(tuple(skills), frozenset(predicates), config, stats)
+
+
+def _other_segments(groups: Sequence[SegmentGroup], dataset: SkillDataset) -> list[Segment]:
+    """Every segment, dropped groups included, except ``dataset``'s own."""
+    own = {id(s) for s in dataset.segments}
+    return [s for g in groups for s in g.segments if id(s) not in own]
+
+
+def _num_samples(dataset: SkillDataset) -> int:
+    return sum(len(s.actions) for s in dataset.segments)

@@ -1,0 +1,156 @@
+"""Subgoal-conditioned skill policies by behaviour cloning (paper §4.2, "Policy Learning").
+
+A skill sees only its scope: the features of its parameters' objects, concatenated in
+parameter order. The policy input is the scope without static dimensions, followed by
+the *relative* subgoal (subgoal - current) over the dimensions that change in the data;
+because the relative subgoal is recomputed every step, a policy conditioned on an
+absolute subgoal gets closed-loop feedback for free.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from bpns.learning.config import LearningConfig, MLPConfig
+from bpns.learning.mlp import MLPParams, Regressor, train_regressor
+from bpns.learning.operators import SkillDataset
+from bpns.structs import Object, State
+
+
+@dataclass(frozen=True, eq=False)
+class ScopeDims:
+    """Which scope dimensions a skill's networks look at.
+
+    ``state_dims``: dims not constant over every state of the skill's data (the others
+    carry no information). ``subgoal_dims``: dims where a segment's final scope differs
+    from its initial scope in at least one segment (the only ones a subgoal sets).
+    """
+
+    size: int
+    state_dims: np.ndarray
+    subgoal_dims: np.ndarray
+
+    @classmethod
+    def from_scopes(cls, scopes: Sequence[np.ndarray], tolerance: float = 0.0) -> ScopeDims:
+        """``scopes[i]`` is the (steps + 1, size) scope trajectory of segment i."""
+        if not scopes:
+            raise ValueError("no segments to compute scope dimensions from")
+        allrows = np.concatenate(scopes, axis=0)
+        spread = allrows.max(axis=0) - allrows.min(axis=0)
+        change = np.max([np.abs(s[-1] - s[0]) for s in scopes], axis=0)
+        return cls(
+            size=allrows.shape[1],
+            state_dims=np.flatnonzero(spread > tolerance),
+            subgoal_dims=np.flatnonzero(change > tolerance),
+        )
+
+    def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
+        return {
+            f"{prefix}size": np.array(self.size),
+            f"{prefix}state_dims": self.state_dims,
+            f"{prefix}subgoal_dims": self.subgoal_dims,
+        }
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str = "") -> ScopeDims:
+        return cls(
+            size=int(arrays[f"{prefix}size"]),
+            state_dims=np.array(arrays[f"{prefix}state_dims"], dtype=np.int64),
+            subgoal_dims=np.array(arrays[f"{prefix}subgoal_dims"], dtype=np.int64),
+        )
+
+
+def scope_trajectories(dataset: SkillDataset) -> list[np.ndarray]:
+    """Scope vectors of every state of every segment, one (steps + 1, size) array each."""
+    return [
+        np.stack([s.vec(objs) for s in seg.states])
+        for seg, objs in zip(dataset.segments, dataset.bindings, strict=True)
+    ]
+
+
+def policy_training_data(
+    scopes: Sequence[np.ndarray],
+    actions: Sequence[np.ndarray],
+    dims: ScopeDims,
+    use_subgoals: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(inputs, targets): one row per step i of each segment, input = scope_i[state dims]
+    (+ (scope_end - scope_i)[subgoal dims]), target = action_i."""
+    xs, ys = [], []
+    for scope, acts in zip(scopes, actions, strict=True):
+        current = scope[:-1]
+        parts = [current[:, dims.state_dims]]
+        if use_subgoals:
+            parts.append((scope[-1] - current)[:, dims.subgoal_dims])
+        xs.append(np.concatenate(parts, axis=1))
+        ys.append(np.asarray(acts, dtype=np.float64).reshape(len(current), -1))
+    return np.concatenate(xs, axis=0), np.concatenate(ys, axis=0)
+
+
+class LearnedPolicy:
+    """SubgoalPolicy backed by a numpy MLP. Outputs are returned unclipped and unchecked
+    (non-finite values included): action limits and validity are the planner's job."""
+
+    def __init__(self, dims: ScopeDims, params: MLPParams, use_subgoals: bool = True) -> None:
+        self.dims = dims
+        self.params = params
+        self.use_subgoals = use_subgoals
+        self._net = Regressor(params)
+        self._sd, self._gd = dims.state_dims, dims.subgoal_dims
+
+    def __call__(self, state: State, objects: Sequence[Object], subgoal: np.ndarray) -> np.ndarray:
+        x = state.vec(objects)
+        if x.shape[0] != self.dims.size:
+            raise ValueError(
+                f"scope has {x.shape[0]} features, the policy expects {self.dims.size}"
+            )
+        if self.use_subgoals:
+            x = np.concatenate((x[self._sd], subgoal[self._gd] - x[self._gd]))
+        else:
+            x = x[self._sd]
+        return self._net(x)
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        return {
+            **self.dims.to_arrays("dims/"),
+            **self.params.to_arrays("net/"),
+            "use_subgoals": np.array(self.use_subgoals),
+        }
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> LearnedPolicy:
+        return cls(
+            ScopeDims.from_arrays(arrays, "dims/"),
+            MLPParams.from_arrays(arrays, "net/"),
+            bool(arrays["use_subgoals"]),
+        )
+
+
+def train_policy(
+    scopes: Sequence[np.ndarray],
+    actions: Sequence[np.ndarray],
+    dims: ScopeDims,
+    config: MLPConfig,
+    seed: int,
+    use_subgoals: bool = True,
+) -> LearnedPolicy:
+    inputs, targets = policy_training_data(scopes, actions, dims, use_subgoals)
+    return LearnedPolicy(dims, train_regressor(inputs, targets, config, seed), use_subgoals)
+
+
+def learn_policy(
+    dataset: SkillDataset,
+    config: LearningConfig,
+    seed: int,
+    scopes: Sequence[np.ndarray] | None = None,
+    dims: ScopeDims | None = None,
+) -> LearnedPolicy:
+    """Behaviour-clone one skill's policy; pass precomputed ``scopes``/``dims`` to share
+    them with sampler learning."""
+    scopes = scope_trajectories(dataset) if scopes is None else scopes
+    dims = ScopeDims.from_scopes(scopes, config.change_tolerance) if dims is None else dims
+    actions = [seg.actions for seg in dataset.segments]
+    return train_policy(scopes, actions, dims, config.policy, seed, config.use_subgoals)

@@ -1,0 +1,251 @@
+"""Subgoal samplers: Gaussian generator + rejection classifier (paper §4.2, appendix B).
+
+The generator predicts the relative subgoal (scope at the segment's end minus scope at
+its start, over the changing dims) from the start scope. A Gaussian is unimodal; the
+classifier, trained to tell demonstrated subgoals from subgoals that are wrong for the
+given objects, carves multimodal or binding-specific structure out of its samples.
+
+Negatives for skill k:
+(a) wrong bindings: the start state of one of k's own segments under another binding of
+    k's operator whose preconditions hold there, with the subgoal that binding's objects
+    actually reached (e.g. "pick block1" paired with the robot ending at block0);
+(b) other skills' data: a segment of another skill whose start state satisfies k's
+    preconditions under some binding, with that binding's end-state subgoal.
+Bindings under which the segment's effects are exactly k's ground effects are equally
+valid explanations of the segment and are never used as negatives.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from bpns.learning.config import LearningConfig, MLPConfig
+from bpns.learning.mlp import (
+    BinaryClassifier,
+    GaussianRegressor,
+    MLPParams,
+    train_classifier,
+    train_gaussian,
+)
+from bpns.learning.operators import SkillDataset, applicable_bindings
+from bpns.learning.policies import ScopeDims, scope_trajectories
+from bpns.structs import Object, Segment, State, STRIPSOperator
+
+
+class LearnedSampler:
+    """SubgoalSampler: draw relative subgoals from the generator, keep the first the
+    classifier accepts (prob > 0.5), else the last of ``max_tries``; return it absolute."""
+
+    def __init__(
+        self,
+        dims: ScopeDims,
+        generator: MLPParams,
+        classifier: MLPParams | None,
+        max_tries: int = 100,
+    ) -> None:
+        self.dims = dims
+        self.generator_params = generator
+        self.classifier_params = classifier
+        self.max_tries = max_tries
+        self._gen = GaussianRegressor(generator)
+        self._cls = None if classifier is None else BinaryClassifier(classifier)
+
+    def _start(self, state: State, objects: Sequence[Object]) -> np.ndarray:
+        x = state.vec(objects)
+        if x.shape[0] != self.dims.size:
+            raise ValueError(
+                f"scope has {x.shape[0]} features, the sampler expects {self.dims.size}"
+            )
+        return x
+
+    def __call__(
+        self, state: State, objects: Sequence[Object], rng: np.random.Generator
+    ) -> np.ndarray:
+        x = self._start(state, objects)
+        s = x[self.dims.state_dims]
+        mean, std = self._gen.mean_std(s)
+        rel = self._draw(s, mean, std, rng)
+        subgoal = x.copy()
+        subgoal[self.dims.subgoal_dims] += rel
+        return subgoal
+
+    def _draw(
+        self, s: np.ndarray, mean: np.ndarray, std: np.ndarray, rng: np.random.Generator
+    ) -> np.ndarray:
+        first = mean + std * rng.standard_normal(mean.shape[0])
+        if self._cls is None or self._cls.prob(np.concatenate((s, first))) > 0.5:
+            return first
+        if self.max_tries == 1:
+            return first
+        # The remaining tries in one batch: same random stream as one-by-one draws.
+        rest = mean + std * rng.standard_normal((self.max_tries - 1, mean.shape[0]))
+        probs = self._cls.prob(
+            np.concatenate((np.broadcast_to(s, (len(rest), s.shape[0])), rest), axis=1)
+        )
+        accepted = np.flatnonzero(probs > 0.5)
+        return rest[accepted[0]] if accepted.size else rest[-1]
+
+    def accept_probability(
+        self, state: State, objects: Sequence[Object], subgoal: np.ndarray
+    ) -> float:
+        """Classifier's P(valid) for an absolute subgoal (1.0 when there is no classifier)."""
+        if self._cls is None:
+            return 1.0
+        x = self._start(state, objects)
+        sd, gd = self.dims.state_dims, self.dims.subgoal_dims
+        return float(self._cls.prob(np.concatenate((x[sd], subgoal[gd] - x[gd]))))
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        out = {
+            **self.dims.to_arrays("dims/"),
+            **self.generator_params.to_arrays("generator/"),
+            "max_tries": np.array(self.max_tries),
+        }
+        if self.classifier_params is not None:
+            out.update(self.classifier_params.to_arrays("classifier/"))
+        return out
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> LearnedSampler:
+        has_classifier = any(k.startswith("classifier/") for k in arrays)
+        return cls(
+            ScopeDims.from_arrays(arrays, "dims/"),
+            MLPParams.from_arrays(arrays, "generator/"),
+            MLPParams.from_arrays(arrays, "classifier/") if has_classifier else None,
+            int(arrays["max_tries"]),
+        )
+
+
+class CurrentStateSampler:
+    """Placeholder sampler for skills without subgoals (BPNS-NoSubgoal): returns the
+    current scope, which such policies ignore. Consumes no randomness."""
+
+    def __call__(
+        self, state: State, objects: Sequence[Object], rng: np.random.Generator
+    ) -> np.ndarray:
+        return state.vec(objects)
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        return {}
+
+
+# -------------------------------------------------------------------------- training data
+
+
+def _row(start: State, end: State, objects: Sequence[Object], dims: ScopeDims) -> np.ndarray:
+    s0, s1 = start.vec(objects), end.vec(objects)
+    return np.concatenate((s0[dims.state_dims], (s1 - s0)[dims.subgoal_dims]))
+
+
+def _explains(operator: STRIPSOperator, binding: tuple[Object, ...], segment: Segment) -> bool:
+    ground = operator.ground(binding)
+    return (
+        ground.add_effects == segment.add_effects
+        and ground.delete_effects == segment.delete_effects
+    )
+
+
+def _negative_bindings(
+    operator: STRIPSOperator,
+    segment: Segment,
+    exclude: tuple[Object, ...] | None,
+    cap: int | None,
+    rng: np.random.Generator,
+) -> list[tuple[Object, ...]]:
+    bindings = [
+        b
+        for b in applicable_bindings(operator, segment.init_atoms, segment.states[0].objects)
+        if b != exclude and not _explains(operator, b, segment)
+    ]
+    if cap is not None and len(bindings) > cap:
+        keep = np.sort(rng.choice(len(bindings), size=cap, replace=False))
+        bindings = [bindings[i] for i in keep]
+    return bindings
+
+
+def sampler_training_data(
+    dataset: SkillDataset,
+    scopes: Sequence[np.ndarray],
+    dims: ScopeDims,
+    other_segments: Sequence[Segment],
+    max_negative_bindings_per_segment: int | None,
+    seed: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(generator inputs, generator targets, classifier rows + labels as last column).
+
+    Generator: start scope (state dims) -> relative subgoal (subgoal dims), one row per
+    segment. Classifier rows: start scope (state dims) + relative subgoal.
+    """
+    starts = np.stack([sc[0] for sc in scopes])
+    ends = np.stack([sc[-1] for sc in scopes])
+    gen_x = starts[:, dims.state_dims]
+    gen_y = (ends - starts)[:, dims.subgoal_dims]
+    positives = np.concatenate((gen_x, gen_y), axis=1)
+    rng = np.random.default_rng(seed)
+    cap = max_negative_bindings_per_segment
+    negatives = []
+    for seg, binding in zip(dataset.segments, dataset.bindings, strict=True):
+        for b in _negative_bindings(dataset.operator, seg, binding, cap, rng):
+            negatives.append(_row(seg.states[0], seg.states[-1], b, dims))
+    for seg in other_segments:
+        for b in _negative_bindings(dataset.operator, seg, None, cap, rng):
+            negatives.append(_row(seg.states[0], seg.states[-1], b, dims))
+    width = positives.shape[1]
+    neg = np.array(negatives, dtype=np.float64).reshape(-1, width)
+    rows = np.concatenate((positives, neg), axis=0)
+    labels = np.concatenate((np.ones(len(positives)), np.zeros(len(neg))))
+    return gen_x, gen_y, np.concatenate((rows, labels[:, None]), axis=1)
+
+
+def train_sampler(
+    gen_x: np.ndarray,
+    gen_y: np.ndarray,
+    classifier_data: np.ndarray,
+    dims: ScopeDims,
+    generator_config: MLPConfig,
+    classifier_config: MLPConfig,
+    seed: int,
+    max_tries: int = 100,
+) -> LearnedSampler | CurrentStateSampler:
+    """Train generator and (if there are negatives) classifier; seeds differ per net.
+
+    A skill whose scope never changes in the data has nothing to sample: its subgoal is
+    the current scope.
+    """
+    if gen_y.shape[1] == 0:
+        return CurrentStateSampler()
+    generator = train_gaussian(gen_x, gen_y, generator_config, seed)
+    labels = classifier_data[:, -1]
+    classifier = None
+    if (labels == 0).any():
+        classifier = train_classifier(classifier_data[:, :-1], labels, classifier_config, seed + 1)
+    return LearnedSampler(dims, generator, classifier, max_tries)
+
+
+def learn_sampler(
+    dataset: SkillDataset,
+    other_segments: Sequence[Segment],
+    config: LearningConfig,
+    seed: int,
+    scopes: Sequence[np.ndarray] | None = None,
+    dims: ScopeDims | None = None,
+) -> LearnedSampler | CurrentStateSampler:
+    """Learn one skill's sampler. ``other_segments``: every segment not in ``dataset``
+    (negatives of kind (b))."""
+    scopes = scope_trajectories(dataset) if scopes is None else scopes
+    dims = ScopeDims.from_scopes(scopes, config.change_tolerance) if dims is None else dims
+    gen_x, gen_y, cls_data = sampler_training_data(
+        dataset, scopes, dims, other_segments, config.max_negative_bindings_per_segment, seed
+    )
+    return train_sampler(
+        gen_x,
+        gen_y,
+        cls_data,
+        dims,
+        config.generator,
+        config.classifier,
+        seed,
+        config.max_rejection_tries,
+    )

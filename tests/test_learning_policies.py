@@ -1,0 +1,102 @@
+"""Subgoal-conditioned policies: data layout, closed-loop behaviour, NaN transparency."""
+
+import numpy as np
+import pytest
+import torch
+
+from bpns.learning.config import LearningConfig, MLPConfig
+from bpns.learning.policies import (
+    LearnedPolicy,
+    ScopeDims,
+    learn_policy,
+    policy_training_data,
+    scope_trajectories,
+)
+from tests import toy_learning as toy
+
+CONFIG = LearningConfig(policy=MLPConfig(num_steps=2000, batch_size=128))
+
+
+@pytest.fixture(autouse=True)
+def _one_torch_thread():
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+@pytest.fixture(scope="module")
+def point_policy():
+    return learn_policy(toy.point_dataset(200, seed=0), CONFIG, seed=0)
+
+
+def test_scope_dims_drop_static_dims_and_keep_changing_ones():
+    scopes = [
+        np.array([[1.0, 5.0, 0.0], [2.0, 5.0, 0.0]]),
+        np.array([[3.0, 5.0, 1.0], [3.0, 5.0, 1.0]]),  # dim 2 varies, but never within
+    ]
+    dims = ScopeDims.from_scopes(scopes)
+    assert dims.size == 3
+    assert dims.state_dims.tolist() == [0, 2]
+    assert dims.subgoal_dims.tolist() == [0]
+    assert ScopeDims.from_scopes(scopes, tolerance=1.5).subgoal_dims.tolist() == []
+
+
+def test_training_pairs_use_relative_subgoals_over_changing_dims():
+    scopes = [np.array([[0.0, 5.0], [1.0, 5.0], [3.0, 5.0]])]
+    actions = [np.array([[1.0], [2.0]])]
+    dims = ScopeDims(2, np.array([0]), np.array([0]))
+    x, y = policy_training_data(scopes, actions, dims)
+    np.testing.assert_array_equal(x, [[0.0, 3.0], [1.0, 2.0]])
+    np.testing.assert_array_equal(y, [[1.0], [2.0]])
+    x, _ = policy_training_data(scopes, actions, dims, use_subgoals=False)
+    np.testing.assert_array_equal(x, [[0.0], [1.0]])
+
+
+def test_policy_recovers_a_linear_controller_and_reaches_subgoals(point_policy):
+    rng = np.random.default_rng(1)
+    errors = []
+    for _ in range(20):
+        state = toy.point_state(rng.uniform(-1, 1, size=2))
+        goal = rng.uniform(-1, 1, size=2)
+        for _ in range(15):
+            state = toy.point_step(state, point_policy(state, (toy.POINT_OBJ,), goal))
+        errors.append(np.linalg.norm(state.data[toy.POINT_OBJ] - goal))
+    assert max(errors) < 0.05
+
+
+def test_policy_output_is_not_sanitised(point_policy):
+    state = toy.point_state([0.0, 0.0])
+    out = point_policy(state, (toy.POINT_OBJ,), np.array([np.nan, 0.0]))
+    assert np.isnan(out).any()
+
+
+def test_policy_rejects_a_scope_of_the_wrong_size(point_policy):
+    state = toy.make_state(1.0, [2.0], [3.0])
+    with pytest.raises(ValueError, match="features"):
+        point_policy(state, (toy.ROBOT_OBJ, toy.blocks(1)[0]), np.zeros(4))
+
+
+def test_policy_without_subgoals_ignores_the_subgoal():
+    config = LearningConfig(use_subgoals=False, policy=MLPConfig(num_steps=50, batch_size=64))
+    dataset = toy.point_dataset(20, seed=0)
+    policy = learn_policy(dataset, config, seed=0)
+    state = dataset.segments[0].states[0]
+    a = policy(state, (toy.POINT_OBJ,), np.zeros(2))
+    np.testing.assert_array_equal(a, policy(state, (toy.POINT_OBJ,), np.ones(2)))
+    assert policy.params.input_dim == 2
+
+
+def test_policy_round_trips_through_arrays(point_policy):
+    back = LearnedPolicy.from_arrays(point_policy.to_arrays())
+    state, goal = toy.point_state([0.3, -0.2]), np.array([0.5, 0.5])
+    np.testing.assert_array_equal(
+        back(state, (toy.POINT_OBJ,), goal), point_policy(state, (toy.POINT_OBJ,), goal)
+    )
+
+
+def test_scope_trajectories_follow_the_parameter_order():
+    dataset = toy.point_dataset(3, seed=0)
+    scopes = scope_trajectories(dataset)
+    assert [s.shape for s in scopes] == [(9, 2)] * 3
+    np.testing.assert_array_equal(scopes[0][0], dataset.segments[0].states[0].vec((toy.POINT_OBJ,)))

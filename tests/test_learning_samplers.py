@@ -1,0 +1,164 @@
+"""Subgoal samplers: Gaussian generator plus a classifier trained on wrong bindings."""
+
+import numpy as np
+import pytest
+import torch
+
+from bpns.learning.config import LearningConfig, MLPConfig
+from bpns.learning.mlp import MLPParams
+from bpns.learning.operators import SkillDataset, learn_operators
+from bpns.learning.partition import partition_segments
+from bpns.learning.policies import ScopeDims, scope_trajectories
+from bpns.learning.samplers import LearnedSampler, learn_sampler, sampler_training_data
+from bpns.learning.segmentation import segment_demonstrations
+from bpns.structs import GroundAtom, Predicate, Segment
+from tests import toy_learning as toy
+
+B0, B1 = toy.blocks(2)
+T0, T1 = toy.targets(2)
+R = toy.ROBOT_OBJ
+
+
+@pytest.fixture(autouse=True)
+def _one_torch_thread():
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+@pytest.fixture(scope="module")
+def skills():
+    return toy.learned_toy_skills()
+
+
+def test_pick_subgoals_stay_near_the_demonstrated_grasps(skills):
+    pick = skills.skill("Op0")
+    assert [v.type for v in pick.operator.parameters] == [toy.BLOCK, toy.ROBOT]
+    state = toy.make_state(1.0, [3.0, 7.5], [5.0, 9.0])
+    rng = np.random.default_rng(0)
+    for block in (B0, B1):
+        goals = np.array([pick.sampler(state, (block, R), rng) for _ in range(200)])
+        # scope: block (x, held), robot (x, holding)
+        np.testing.assert_array_equal(goals[:, 0], state.get(block, "x"))  # block does not move
+        offsets = goals[:, 2] - state.get(block, "x")
+        assert np.mean(np.abs(offsets) < toy.GRASP_TOL) > 0.95
+        assert np.abs(goals[:, [1, 3]] - 1.0).max() < 0.2  # held and holding switch on
+
+
+def test_place_subgoals_put_the_block_on_the_bound_target(skills):
+    place = skills.skill("Op1")
+    state = toy.make_state(4.1, [4.0, 7.5], [2.0, 9.0], held=0)
+    rng = np.random.default_rng(0)
+    for target in (T0, T1):
+        goals = np.array([place.sampler(state, (B0, R, target), rng) for _ in range(100)])
+        landed = goals[:, 0]  # block x in the subgoal
+        assert np.mean(np.abs(landed - state.get(target, "x")) < toy.COVER_TOL) > 0.9
+
+
+def test_classifier_rejects_subgoals_of_a_wrong_binding(skills):
+    sampler = skills.skill("Op0").sampler
+    state = toy.make_state(1.0, [3.0, 7.5], [5.0, 9.0])
+    grasp_b0 = np.array([3.0, 1.0, 3.05, 1.0])  # block0 held, robot at block0
+    assert sampler.accept_probability(state, (B0, R), grasp_b0) > 0.5
+    # The same outcome seen through the binding (block1, robot): the robot grasps
+    # something 4.45 away from block1, and block1 is not held. A wrong-binding negative.
+    wrong = np.array([7.5, 0.0, 3.05, 1.0])
+    assert sampler.accept_probability(state, (B1, R), wrong) < 0.5
+
+
+def test_negatives_come_from_other_bindings_and_other_skills():
+    demos = toy.demos(5, seed=0)
+    segs = segment_demonstrations(demos, toy.PREDICATES, toy.CONTACT_PREDICATES)
+    pick, place = learn_operators(partition_segments(segs))
+    scopes = scope_trajectories(pick)
+    dims = ScopeDims.from_scopes(scopes)
+    _, _, rows = sampler_training_data(pick, scopes, dims, place.segments, None, seed=0)
+    labels = rows[:, -1]
+    assert labels.sum() == len(pick)
+    # Each pick has exactly one other applicable binding (the other block); place
+    # segments start holding a block, so Pick's HandEmpty precondition rules them out.
+    assert (labels == 0).sum() == len(pick)
+    scopes = scope_trajectories(place)
+    dims = ScopeDims.from_scopes(scopes)
+    _, _, rows = sampler_training_data(place, scopes, dims, pick.segments, None, seed=0)
+    assert (rows[:, -1] == 0).sum() == len(place)  # the other target, per segment
+
+
+def _adjacent_dataset():
+    adj = Predicate("Adjacent", (toy.BLOCK, toy.BLOCK), lambda s, o: True)
+    s0 = toy.make_state(0.0, [1.0, 2.0], [])
+    s1 = toy.make_state(0.0, [1.5, 1.6], [])
+    final = frozenset({GroundAtom(adj, (B0, B1)), GroundAtom(adj, (B1, B0))})
+    seg = Segment((s0, s1), np.zeros((1, 2)), frozenset(), final)
+    (dataset,) = learn_operators(partition_segments([seg]))
+    return dataset
+
+
+def test_bindings_that_explain_the_segment_equally_are_not_negatives():
+    dataset = _adjacent_dataset()
+    scopes = scope_trajectories(dataset)
+    _, _, rows = sampler_training_data(
+        dataset, scopes, ScopeDims.from_scopes(scopes), [], None, seed=0
+    )
+    assert (rows[:, -1] == 0).sum() == 0  # the swapped binding has the same effects
+
+
+def test_without_negatives_the_sampler_accepts_every_draw():
+    config = LearningConfig(generator=MLPConfig(num_steps=200, batch_size=64))
+    dataset: SkillDataset = toy.point_dataset(30, seed=0)
+    sampler = learn_sampler(dataset, [], config, seed=0)
+    assert sampler.classifier_params is None
+    state = toy.point_state([0.0, 0.0])
+    a = sampler(state, (toy.POINT_OBJ,), np.random.default_rng(5))
+    b = sampler(state, (toy.POINT_OBJ,), np.random.default_rng(5))
+    np.testing.assert_array_equal(a, b)
+    assert sampler.accept_probability(state, (toy.POINT_OBJ,), a) == 1.0
+
+
+def _reject_all(sampler: LearnedSampler) -> LearnedSampler:
+    width = len(sampler.dims.state_dims) + len(sampler.dims.subgoal_dims)
+    never = MLPParams(
+        weights=(np.zeros((width, 1)),),
+        biases=(np.array([-50.0]),),
+        input_mean=np.zeros(width),
+        input_std=np.ones(width),
+        output_mean=np.zeros(1),
+        output_std=np.ones(1),
+    )
+    return LearnedSampler(sampler.dims, sampler.generator_params, never, max_tries=7)
+
+
+def test_when_every_draw_is_rejected_the_last_draw_is_returned(skills):
+    sampler = _reject_all(skills.skill("Op0").sampler)
+    state = toy.make_state(1.0, [3.0, 7.5], [5.0, 9.0])
+    got = sampler(state, (B0, R), np.random.default_rng(3))
+    # Replay the same random stream by hand: 7 draws, keep the 7th.
+    x = state.vec((B0, R))
+    mean, std = sampler._gen.mean_std(x[sampler.dims.state_dims])
+    z = np.random.default_rng(3).standard_normal((7, len(mean)))
+    expected = x.copy()
+    expected[sampler.dims.subgoal_dims] += mean + std * z[-1]
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
+
+
+def test_sampler_round_trips_through_arrays(skills):
+    sampler = skills.skill("Op1").sampler
+    back = LearnedSampler.from_arrays(sampler.to_arrays())
+    state = toy.make_state(4.1, [4.0, 7.5], [2.0, 9.0], held=0)
+    a = sampler(state, (B0, R, T0), np.random.default_rng(1))
+    b = back(state, (B0, R, T0), np.random.default_rng(1))
+    np.testing.assert_array_equal(a, b)
+
+
+def test_a_skill_whose_scope_never_changes_samples_the_current_scope():
+    dataset = toy.point_dataset(5, seed=0)
+    still = [
+        Segment((s.states[0], s.states[0]), s.actions[:1], s.init_atoms, s.final_atoms)
+        for s in dataset.segments
+    ]
+    dataset = SkillDataset(dataset.operator, tuple(still), dataset.bindings)
+    sampler = learn_sampler(dataset, [], LearningConfig(), seed=0)
+    state = toy.point_state([0.2, 0.3])
+    goal = sampler(state, (toy.POINT_OBJ,), np.random.default_rng(0))
+    np.testing.assert_array_equal(goal, [0.2, 0.3])
