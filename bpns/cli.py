@@ -8,10 +8,50 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from bpns.commands import COMMANDS, UserError
+from bpns import commands, commands_learning
+from bpns.cli_common import UserError
+
+# name -> (help, configure the argument parser, run)
+COMMANDS: dict[str, tuple[str, Callable, Callable]] = {
+    "demos": (
+        "collect demonstrations with the scripted oracle",
+        commands.demos_args,
+        commands.cmd_demos,
+    ),
+    "replay": (
+        "re-simulate demonstrations and report any divergence",
+        commands.replay_args,
+        commands.cmd_replay,
+    ),
+    "render": (
+        "render a demonstration to mp4 (and PNG)",
+        commands.render_args,
+        commands.cmd_render,
+    ),
+    "learn": (
+        "learn neuro-symbolic skills from demonstrations",
+        commands_learning.learn_args,
+        commands_learning.cmd_learn,
+    ),
+    "skills": (
+        "inspect learned skills (`bpns skills show DIR`)",
+        commands_learning.skills_args,
+        commands_learning.cmd_skills,
+    ),
+    "eval": (
+        "solve held-out tasks by bilevel planning; results JSON + markdown table",
+        commands_learning.eval_args,
+        commands_learning.cmd_eval,
+    ),
+    "run": (
+        "the whole pipeline: demos -> learn -> eval -> table -> video",
+        commands_learning.run_args,
+        commands_learning.cmd_run,
+    ),
+}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -42,4 +82,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 if __name__ == "__main__":
     sys.exit(main())
 
-__all__ = ["main", "build_parser", "Path"]
+__all__ = ["COMMANDS", "main", "build_parser", "Path"]

@@ -1,73 +1,35 @@
-"""Implementations of the ``bpns`` sub-commands (argument set-up + run function each)."""
+"""``bpns demos``, ``bpns replay`` and ``bpns render``: demonstrations and their videos."""
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 
+from bpns.cli_common import UserError, env_by_name, file_env, positive, progress
 from bpns.datasets import DatasetError
 
 
-class UserError(Exception):
-    """Bad input from the user: reported as one line, no traceback."""
-
-
-def _env(name: str):
-    from bpns.registry import UnknownEnvironmentError, make_environment
-
-    try:
-        return make_environment(name)
-    except UnknownEnvironmentError as err:
-        raise UserError(str(err)) from None
-
-
-def _positive(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a number >= 1, got {v}")
-    return v
-
-
-def _progress(iterable, total: int, desc: str):
-    from tqdm import tqdm
-
-    return tqdm(
-        iterable,
-        total=total,
-        desc=desc,
-        unit="task",
-        disable=not sys.stderr.isatty() and os.environ.get("BPNS_PROGRESS") != "1",
-        leave=False,
-    )
-
-
 # -- demos ------------------------------------------------------------------------------
-def _demos_args(p: argparse.ArgumentParser) -> None:
+def demos_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--env", required=True, help="environment name (e.g. cover)")
-    p.add_argument("-n", "--num", type=_positive, default=10, help="number of train tasks")
+    p.add_argument("-n", "--num", type=positive, default=10, help="number of train tasks")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", required=True, type=Path, help="output .h5 file")
-    p.add_argument("--workers", type=_positive, default=max(1, (os.cpu_count() or 1)))
+    p.add_argument("--workers", type=positive, default=max(1, (os.cpu_count() or 1)))
 
 
 def cmd_demos(args: argparse.Namespace) -> int:
     from bpns.datasets import save_demonstrations
     from bpns.demos import collect_demonstrations
 
-    env = _env(args.env)
+    env = env_by_name(args.env)
     failed: list[int] = []
     t0 = time.perf_counter()
 
     def successful():
-        for index, demo in _progress(
+        for index, demo in progress(
             collect_demonstrations(env.name, args.num, args.seed, args.workers),
             args.num,
             f"demos {env.name}",
@@ -87,42 +49,24 @@ def cmd_demos(args: argparse.Namespace) -> int:
 
 
 # -- replay -----------------------------------------------------------------------------
-def _replay_args(p: argparse.ArgumentParser) -> None:
+def replay_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("file", type=Path, help="demonstration .h5 file")
     p.add_argument("--env", help="environment (default: the one named in the file)")
-    p.add_argument("--limit", type=_positive, help="replay only the first N demos")
-
-
-def _file_env(path: Path, name: str | None):
-    import h5py
-
-    if name is None:
-        if not path.is_file():
-            raise UserError(f"{path}: no such demonstration file")
-        try:
-            with h5py.File(path, "r") as f:
-                name = str(f.attrs.get("env", ""))
-        except OSError as err:
-            raise UserError(
-                f"{path}: not a readable HDF5 file (corrupt or truncated?): {err}"
-            ) from None
-        if not name:
-            raise UserError(f"{path}: not a bpns demonstration file (no env attribute)")
-    return _env(name)
+    p.add_argument("--limit", type=positive, help="replay only the first N demos")
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
     from bpns.datasets import count_demonstrations, iter_demonstrations
     from bpns.demos import replay
 
-    env = _file_env(args.file, args.env)
+    env = file_env(args.file, args.env)
     try:
         total = count_demonstrations(args.file)
         n = min(total, args.limit or total)
         reports = [
             replay(env, d, i)
             for i, d in enumerate(
-                _progress(iter_demonstrations(args.file, env, range(n)), n, "replay")
+                progress(iter_demonstrations(args.file, env, range(n)), n, "replay")
             )
         ]
     except DatasetError as err:
@@ -143,21 +87,21 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 # -- render -----------------------------------------------------------------------------
-def _render_args(p: argparse.ArgumentParser) -> None:
+def render_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("file", type=Path, help="demonstration .h5 file")
     p.add_argument("--demo", type=int, default=0, help="index of the demo to render")
     p.add_argument("--out", type=Path, help="output .mp4 (default: demo_<i>.mp4)")
     p.add_argument("--png", type=Path, help="also write a PNG snapshot of the last frame")
     p.add_argument("--camera", default="overview")
-    p.add_argument("--width", type=_positive, default=640)
-    p.add_argument("--height", type=_positive, default=480)
+    p.add_argument("--width", type=positive, default=640)
+    p.add_argument("--height", type=positive, default=480)
     p.add_argument("--env", help="environment (default: the one named in the file)")
 
 
 def cmd_render(args: argparse.Namespace) -> int:
     from bpns.datasets import load_demonstrations
 
-    env = _file_env(args.file, args.env)
+    env = file_env(args.file, args.env)
     try:
         (demo,) = load_demonstrations(args.file, env, [args.demo])
     except DatasetError as err:
@@ -200,63 +144,3 @@ def render_video(
     except (RuntimeError, ValueError) as err:
         raise UserError(str(err)) from None
     return n
-
-
-# -- run --------------------------------------------------------------------------------
-def _run_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--env", default="cover")
-    p.add_argument("--demos", type=_positive, default=10, help="number of demonstrations")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", type=Path, default=Path("outputs/cover"), help="output directory")
-    p.add_argument("--workers", type=_positive, default=max(1, (os.cpu_count() or 1)))
-
-
-def cmd_run(args: argparse.Namespace) -> int:
-    """demos -> replay check -> video (-> learn -> eval -> table when learning is available)."""
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
-    demos_path = out / "demos.h5"
-    steps = [
-        [
-            "demos",
-            "--env",
-            args.env,
-            "-n",
-            str(args.demos),
-            "--seed",
-            str(args.seed),
-            "--out",
-            str(demos_path),
-            "--workers",
-            str(args.workers),
-        ],
-        ["replay", str(demos_path)],
-        [
-            "render",
-            str(demos_path),
-            "--demo",
-            "0",
-            "--out",
-            str(out / "demo_0.mp4"),
-            "--png",
-            str(out / "demo_0.png"),
-        ],
-    ]
-    from bpns.cli import main as cli_main
-
-    for argv in steps:
-        print(f"$ bpns {' '.join(argv)}", flush=True)
-        code = cli_main(argv)
-        if code != 0:
-            return code
-    return 0
-
-
-COMMANDS: dict[str, tuple[str, Callable, Callable]] = {
-    "demos": ("collect demonstrations with the scripted oracle", _demos_args, cmd_demos),
-    "replay": ("re-simulate demonstrations and report any divergence", _replay_args, cmd_replay),
-    "render": ("render a demonstration to mp4 (and PNG)", _render_args, cmd_render),
-    "run": ("the whole pipeline on a small default", _run_args, cmd_run),
-}
-
-__all__ = ["COMMANDS", "UserError", "json"]

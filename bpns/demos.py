@@ -85,7 +85,7 @@ def replay(env: Environment, demo: Demonstration, index: int = 0) -> ReplayRepor
     """Re-simulate ``demo``'s actions from its first state; compare with stored states."""
     state = demo.states[0]
     max_state = max_feat = 0.0
-    for action, stored in zip(demo.actions, demo.states[1:]):
+    for action, stored in zip(demo.actions, demo.states[1:], strict=True):
         state = env.simulate(state, action)
         max_state = max(max_state, float(np.max(np.abs(state.sim.flat - stored.sim.flat))))
         for obj, v in stored.data.items():

@@ -32,6 +32,10 @@ class Environment(Protocol):
         """Predicates whose truth changes mark skill boundaries (paper §4.1)."""
         ...
 
+    # Optional: contact changes closer than this many steps are one physical event for
+    # segmentation (a release that bounces, a touch-down a step after letting go).
+    # ``contact_settle_steps: int``
+
     @property
     def goal_predicates(self) -> frozenset[Predicate]: ...
 

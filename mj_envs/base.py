@@ -43,6 +43,9 @@ class MujocoEnv(abc.ABC):
     name: str = "mujoco"
     controller_config: ControllerConfig = ControllerConfig()
     settle_steps: int = 5
+    # Segmentation merges contact changes closer than this (bpns.learning.segmentation):
+    # at 20 Hz a release or touch-down settles within three control steps.
+    contact_settle_steps: int = 4
 
     # -- what a domain declares -----------------------------------------------------
     @property
@@ -90,7 +93,18 @@ class MujocoEnv(abc.ABC):
         return True
 
     def after_step(self, world: World) -> None:
-        """Domain physics beyond MuJoCo's (e.g. button latches); edits userdata only."""
+        """Domain physics beyond MuJoCo's (e.g. button latches).
+
+        It may only edit what the flat state saves (userdata, ``eq_active``, ...), so that
+        replay stays exact; never the model.
+        """
+
+    def decorate(self, world: World) -> None:
+        """Set looks that follow the loaded state (e.g. colours) before a frame is drawn.
+
+        Geom colours live in the model, not in the simulator state, so a domain that wants
+        them to show its state sets them here, from ``world.data``, for every frame.
+        """
 
     @property
     def max_objects(self) -> dict[str, int]:
@@ -170,7 +184,7 @@ class MujocoEnv(abc.ABC):
     ):
         from mj_envs.render import render_states
 
-        return render_states(states, camera, width, height)
+        return render_states(states, camera, width, height, decorate=self.decorate)
 
     # -- persistence ------------------------------------------------------------------
     def save_world(self, world: Hashable) -> str:

@@ -125,7 +125,7 @@ class CoverEnv(MujocoEnv):
 
         arena = make_arena("cover", nuserdata=7)
         wb = arena.worldbody
-        region_spans = [(by - w / 2, by + w / 2) for by, w in zip(bys, widths)]
+        region_spans = [(by - w / 2, by + w / 2) for by, w in zip(bys, widths, strict=True)]
         region_spans += [(ty - TARGET_REGION_HALF, ty + TARGET_REGION_HALF) for ty in tys]
         for i, (lo, hi) in enumerate(region_spans):
             wb.add(
@@ -138,7 +138,7 @@ class CoverEnv(MujocoEnv):
                 pos=(LINE_X, (lo + hi) / 2, 0.0004),
                 rgba=(0.95, 0.85, 0.2, 0.45),
             )
-        for i, (ty, tw) in enumerate(zip(tys, twidths)):
+        for i, (ty, tw) in enumerate(zip(tys, twidths, strict=True)):
             wb.add(
                 "geom",
                 name=f"target{i}",
@@ -150,7 +150,7 @@ class CoverEnv(MujocoEnv):
                 rgba=(0.2, 0.75, 0.3, 1),
             )
         colours = [(0.85, 0.25, 0.2, 1), (0.2, 0.4, 0.85, 1)]
-        for i, (by, w) in enumerate(zip(bys, widths)):
+        for i, (by, w) in enumerate(zip(bys, widths, strict=True)):
             body = wb.add("body", name=f"block{i}", pos=(LINE_X, by, BLOCK_HEIGHT / 2))
             body.add("freejoint", name=f"block{i}_joint")
             body.add(

@@ -1,41 +1,92 @@
 """Scripted Cover demonstrator: closed-loop on features, acting only through actions.
 
 For each unsatisfied goal atom Covers(b, t): choose a grasp offset along the block that
-leaves room to release over the target inside its allowed region, move above the grasp
-point, descend, close until both pads touch, lift, carry so that the *measured* offset
-puts the block over the target while the hand stays in the target's region, lower until
-the block touches the table, open, lift.
+leaves room to release over the target inside its allowed region (Pick), then carry the
+block so that its *measured* offset puts it over the target while the hand stays in the
+target's region, lower it onto the table and open (Place).
+
+Both behaviours are written to be *imitable* by a small MLP (the learned policies clone
+them): every action is a continuous function of the state and the goal point except for
+the gripper, which is saturated (+1 open / -1 closed) so that imitation error in the
+grip output cannot slowly integrate into closing fingers. Travel follows a funnel: the
+hand must be at least ``funnel_height(d)`` above the goal, which grows with the
+horizontal distance d to it, and it only moves sideways once it is that high. So the
+hand rises, travels and descends in one smooth motion with no phase switches.
 """
 
 from __future__ import annotations
-
-from collections.abc import Callable
 
 import numpy as np
 
 from bpns.structs import GroundAtom, Object, State, Task
 from mj_envs.cover import BLOCK, LINE_X, ROBOT, TARGET, TARGET_REGION_HALF
 
-SAFE_Z = 0.12
-GAIN = 0.7
+SAFE_Z = 0.12  # travel height of the hand (block tops are at 0.04)
+GAIN = 0.7  # proportional gain < 1 absorbs the arm's tracking lag
+FUNNEL_SLOPE = 4.0  # required height above the goal per metre of horizontal distance
+FUNNEL_BAND = 0.02  # sideways motion fades in over this much height deficit
 GRASP_Z_ABOVE_CENTRE = 0.006  # keeps the fingertips off the table
-MAX_CLOSE_STEPS = 20
-RELEASE_LIFT = 0.004
+CLOSE_TOL = 0.006  # close the fingers once the hand is this near the grasp point
+RELEASE_TOL = 0.006  # open once the block touches the table with the hand this near
 POS_TOL = 0.003
 REGION_MARGIN = 0.005
 COVER_MARGIN = 0.004
 PAD_CLEARANCE = 0.014  # keep both pads fully on the block
-EXTRA_CLOSE_STEPS = 3
+MAX_SKILL_STEPS = 150  # a scripted pick or place that takes longer has failed
 
 
 def move_action(state: State, robot: Object, goal_xyz: np.ndarray, grip: float = 0.0) -> np.ndarray:
-    """Proportional step toward ``goal_xyz``; the gain < 1 absorbs the arm's tracking lag."""
+    """Proportional step toward ``goal_xyz``."""
     pos = state.data[robot][:3]
     return np.array([*(GAIN * (goal_xyz - pos)), grip])
 
 
 def at(state: State, robot: Object, goal_xyz: np.ndarray, tol: float = POS_TOL) -> bool:
     return bool(np.all(np.abs(state.data[robot][:3] - goal_xyz) <= tol))
+
+
+def funnel_action(state: State, robot: Object, goal_xyz: np.ndarray, grip: float) -> np.ndarray:
+    """Step toward ``goal_xyz`` along the funnel (rise, travel, descend in one motion)."""
+    pos = state.data[robot][:3]
+    d = float(np.hypot(*(goal_xyz[:2] - pos[:2])))
+    z_req = goal_xyz[2] + min(max(SAFE_Z - goal_xyz[2], 0.0), FUNNEL_SLOPE * d)
+    sideways = float(np.clip(1.0 - (z_req - pos[2]) / FUNNEL_BAND, 0.0, 1.0))
+    return np.array(
+        [
+            GAIN * (goal_xyz[0] - pos[0]) * sideways,
+            GAIN * (goal_xyz[1] - pos[1]) * sideways,
+            GAIN * (z_req - pos[2]),
+            grip,
+        ]
+    )
+
+
+def grasp_point(state: State, block: Object, hand_y: float) -> np.ndarray:
+    return np.array(
+        [state.get(block, "x"), hand_y, state.get(block, "height") / 2 + GRASP_Z_ABOVE_CENTRE]
+    )
+
+
+def pick_action(state: State, robot: Object, block: Object, hand_y: float) -> np.ndarray:
+    """Funnel to the grasp point with the fingers open, then close there."""
+    goal = grasp_point(state, block, hand_y)
+    near = np.linalg.norm(state.data[robot][:3] - goal) <= CLOSE_TOL
+    return funnel_action(state, robot, goal, grip=-1.0 if near else 1.0)
+
+
+def place_action(state: State, robot: Object, block: Object, hand_y: float) -> np.ndarray:
+    """Funnel the held block to the release point, lower it onto the table, open."""
+    # the hand height that puts the block's bottom 1 mm into the table
+    drop = state.get(block, "z") - state.get(block, "height") / 2 + 0.001
+    goal = np.array([LINE_X, hand_y, state.get(robot, "z") - drop])
+    landed = state.get(block, "on_table") > 0.5
+    near = np.hypot(*(state.data[robot][:2] - goal[:2])) <= RELEASE_TOL
+    if landed and near:
+        # hold still just where the block touched down and open: pushing on would slide
+        # the block up the pads
+        pos = state.data[robot][:3]
+        return move_action(state, robot, np.array([LINE_X, hand_y, pos[2]]), grip=1.0)
+    return funnel_action(state, robot, goal, grip=-1.0)
 
 
 def sample_grasp_offset(
@@ -62,95 +113,46 @@ class DemonstrationFailed(RuntimeError):
 
 
 class CoverDemonstrator:
-    """A stateful closed-loop oracle policy for one task (call it once per step)."""
+    """A stateful closed-loop oracle policy for one task (call it once per step).
+
+    State kept between calls: the goal atom being achieved and, for it,
+    the sampled grasp offset and a step budget.
+    """
 
     def __init__(self, task: Task, rng: np.random.Generator) -> None:
         self.task = task
         self.rng = rng
         self.robot = next(o for o in task.objects if o.type == ROBOT)
-        self.pending = sorted(task.goal, key=str)
-        self._phases: list[Callable[[State], np.ndarray | None]] = []
+        self.goal = sorted(task.goal, key=str)
+        self.atom: GroundAtom | None = None
+        self.grasp_offset = 0.0
+        self.steps = 0
 
     def __call__(self, state: State) -> np.ndarray:
-        while True:
-            if not self._phases:
-                atom = self._next_atom(state)
-                if atom is None:
-                    return np.zeros(4)
-                self._phases = self._plan_atom(state, atom)
-            action = self._phases[0](state)
-            if action is not None:
-                return action
-            self._phases.pop(0)
+        if self.atom is None or self.atom.holds(state):
+            self.atom = self._next_atom(state)
+            if self.atom is None:
+                return np.zeros(4)
+            block, target = self.atom.objects
+            assert block.type == BLOCK and target.type == TARGET
+            self.grasp_offset = sample_grasp_offset(state, block, target, self.rng)
+            self.steps = 0
+        self.steps += 1
+        if self.steps > 2 * MAX_SKILL_STEPS:
+            raise DemonstrationFailed(f"could not achieve {self.atom}")
+        block, target = self.atom.objects
+        robot = self.robot
+        if state.get(block, "grasped") > 0.5:
+            action = place_action(state, robot, block, release_hand_y(state, robot, block, target))
+        else:
+            hand_y = state.get(block, "y") + self.grasp_offset
+            action = pick_action(state, robot, block, hand_y)
+        return action
 
     def _next_atom(self, state: State) -> GroundAtom | None:
-        while self.pending:
-            atom = self.pending.pop(0)
-            if not atom.holds(state):
-                return atom
-        return None
-
-    def _plan_atom(
-        self, state: State, atom: GroundAtom
-    ) -> list[Callable[[State], np.ndarray | None]]:
-        block, target = atom.objects
-        assert block.type == BLOCK and target.type == TARGET
-        robot = self.robot
-        offset = sample_grasp_offset(state, block, target, self.rng)
-        grasp_y = state.get(block, "y") + offset
-        bx = state.get(block, "x")
-        grasp_z = state.get(block, "height") / 2 + GRASP_Z_ABOVE_CENTRE
-        above_grasp = np.array([bx, grasp_y, SAFE_Z])
-        grasp_point = np.array([bx, grasp_y, grasp_z])
-        closing = {"extra": 0, "steps": 0}
-
-        def lift(s: State) -> np.ndarray | None:
-            goal = np.array([s.get(robot, "x"), s.get(robot, "y"), SAFE_Z])
-            return None if at(s, robot, goal, 0.01) else move_action(s, robot, goal)
-
-        def go(goal: np.ndarray, grip: float = 0.0) -> Callable[[State], np.ndarray | None]:
-            return lambda s: None if at(s, robot, goal) else move_action(s, robot, goal, grip)
-
-        def close(s: State) -> np.ndarray | None:
-            closing["steps"] += 1
-            if closing["steps"] > MAX_CLOSE_STEPS:
-                raise DemonstrationFailed(f"could not grasp {block.name}")
-            if s.get(block, "grasped") > 0.5:
-                closing["extra"] += 1
-                if closing["extra"] > EXTRA_CLOSE_STEPS:
-                    return None
-            # keep correcting toward the grasp point while the fingers close
-            return move_action(s, robot, grasp_point, grip=-1.0)
-
-        def carry(s: State) -> np.ndarray | None:
-            goal = np.array([LINE_X, release_hand_y(s, robot, block, target), SAFE_Z])
-            return go(goal)(s)
-
-        def lower(s: State) -> np.ndarray | None:
-            if s.get(block, "on_table") > 0.5:
-                closing["release"] = np.array(
-                    [
-                        LINE_X,
-                        release_hand_y(s, robot, block, target),
-                        s.get(robot, "z") + RELEASE_LIFT,
-                    ]
-                )
-                return None
-            # hand height that puts the block's bottom 1 mm into the table
-            drop = s.get(block, "z") - s.get(block, "height") / 2 + 0.001
-            goal = np.array(
-                [LINE_X, release_hand_y(s, robot, block, target), s.get(robot, "z") - drop]
-            )
-            return move_action(s, robot, goal)
-
-        def open_(s: State) -> np.ndarray | None:
-            if s.get(block, "grasped") < 0.5 and s.get(robot, "fingers") > 0.035:
-                return None
-            # hold the hand just above where the block touched down: the commanded pose
-            # leads the measured one, and pushing on would slide the block up the pads
-            return move_action(s, robot, closing["release"], grip=1.0)
-
-        return [lift, go(above_grasp), go(grasp_point), close, lift, carry, lower, open_, lift]
+        """The first goal atom that does not hold (an achieved one may be undone later,
+        e.g. by the pads nudging a released block, and is then redone)."""
+        return next((a for a in self.goal if not a.holds(state)), None)
 
 
 def demonstrator(task: Task, rng: np.random.Generator) -> CoverDemonstrator:

@@ -20,16 +20,13 @@ from mj_envs.cover import (
     HOLDING,
     IS_BLOCK,
     IS_TARGET,
-    LINE_X,
     ROBOT,
     TARGET,
 )
 from mj_envs.cover_oracle import (
-    GAIN,
-    GRASP_Z_ABOVE_CENTRE,
     PAD_CLEARANCE,
-    POS_TOL,
-    SAFE_Z,
+    pick_action,
+    place_action,
     release_hand_y,
 )
 
@@ -52,38 +49,12 @@ PLACE = STRIPSOperator(
 )
 
 
-def _toward(state: State, robot: Object, goal: np.ndarray, grip: float) -> np.ndarray:
-    return np.array([*(GAIN * (goal - state.data[robot][:3])), grip])
-
-
-def _travel(state: State, robot: Object, xy: np.ndarray, grip: float) -> np.ndarray | None:
-    """Rise to the safe height, then move in xy; None once above ``xy``."""
-    pos = state.data[robot][:3]
-    if np.all(np.abs(pos[:2] - xy) <= 2 * POS_TOL):
-        return None
-    if pos[2] < SAFE_Z - 0.01 and np.any(np.abs(pos[:2] - xy) > 0.01):
-        return _toward(state, robot, np.array([pos[0], pos[1], SAFE_Z]), grip)
-    return _toward(state, robot, np.array([xy[0], xy[1], SAFE_Z]), grip)
-
-
 class PickPolicy:
-    """Go above the grasp point in the subgoal, descend, close."""
+    """The demonstrator's pick behaviour toward the grasp y in the subgoal's robot part."""
 
     def __call__(self, state: State, objects: Sequence[Object], subgoal: np.ndarray) -> np.ndarray:
         robot, block = objects
-        grasp = np.array(
-            [
-                state.get(block, "x"),
-                subgoal[1],
-                state.get(block, "height") / 2 + GRASP_Z_ABOVE_CENTRE,
-            ]
-        )
-        move = _travel(state, robot, grasp[:2], grip=1.0)
-        if move is not None and state.get(robot, "fingers") > 0.03:
-            return move
-        if state.get(robot, "z") > grasp[2] + POS_TOL and state.get(robot, "fingers") > 0.03:
-            return _toward(state, robot, grasp, grip=1.0)
-        return _toward(state, robot, grasp, grip=-1.0)
+        return pick_action(state, robot, block, float(subgoal[1]))
 
 
 class PickSampler:
@@ -100,19 +71,11 @@ class PickSampler:
 
 
 class PlacePolicy:
-    """Carry to the release point in the subgoal, lower until the block lands, open."""
+    """The demonstrator's place behaviour toward the release y in the subgoal."""
 
     def __call__(self, state: State, objects: Sequence[Object], subgoal: np.ndarray) -> np.ndarray:
         robot, block, _ = objects
-        release = np.array([LINE_X, subgoal[1]])
-        if state.get(block, "on_table") > 0.5 and state.get(robot, "z") < SAFE_Z - 0.04:
-            pos = state.data[robot][:3]
-            return _toward(state, robot, np.array([*release, pos[2] + 0.004]), grip=1.0)
-        move = _travel(state, robot, release, grip=-1.0)
-        if move is not None:
-            return move
-        drop = state.get(block, "z") - state.get(block, "height") / 2 + 0.001
-        return _toward(state, robot, np.array([*release, state.get(robot, "z") - drop]), -1.0)
+        return place_action(state, robot, block, float(subgoal[1]))
 
 
 class PlaceSampler:

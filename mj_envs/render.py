@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 import mujoco
 import numpy as np
@@ -24,9 +24,16 @@ def _check_backend() -> None:
 
 
 def render_states(
-    states: Sequence[State], camera: str = "overview", width: int = 640, height: int = 480
+    states: Sequence[State],
+    camera: str = "overview",
+    width: int = 640,
+    height: int = 480,
+    decorate: Callable[[World], None] | None = None,
 ) -> Iterator[np.ndarray]:
-    """Yield one RGB frame per state; the renderer is always closed afterwards."""
+    """Yield one RGB frame per state; the renderer is always closed afterwards.
+
+    ``decorate(world)`` runs after each state is loaded, to set state-dependent looks.
+    """
     if not states:
         return
     _check_backend()
@@ -47,6 +54,8 @@ def render_states(
     try:
         for state in states:
             world.load(state.sim.flat)
+            if decorate is not None:
+                decorate(world)
             renderer.update_scene(world.data, camera=camera)
             yield renderer.render().copy()
     finally:

@@ -1,8 +1,10 @@
 """Save and load learned skills; describe them for people.
 
 Layout of a skills directory:
-    skills.json          format version, types, predicates, config, stats and every
-                         operator in readable form (names of predicates, types, variables)
+    skills.json          format version, environment name, types, predicates, config,
+                         stats and every operator in readable form
+    domain.pddl          the operators as a typed STRIPS PDDL domain (for reading, or
+                         for any PDDL planner)
     <Op>.policy.npz      policy weights and scope dimensions
     <Op>.sampler.npz     sampler weights (absent for skills without subgoals)
 
@@ -19,6 +21,7 @@ import json
 import os
 import shutil
 import tempfile
+import zipfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -29,11 +32,13 @@ from bpns.learning.config import LearningConfig, MLPConfig
 from bpns.learning.pipeline import LearnedSkills, LearningStats, SkillStats
 from bpns.learning.policies import LearnedPolicy
 from bpns.learning.samplers import CurrentStateSampler, LearnedSampler
+from bpns.pddl import domain_pddl
 from bpns.structs import LiftedAtom, Predicate, Skill, STRIPSOperator, Type, Variable
 
 FORMAT = "bpns-skills"
 VERSION = 1
 INDEX = "skills.json"
+DOMAIN = "domain.pddl"
 
 
 class ArtifactError(ValueError):
@@ -44,9 +49,16 @@ class ArtifactError(ValueError):
 
 
 def save_skills(
-    skills: LearnedSkills, directory: str | os.PathLike, overwrite: bool = False
+    skills: LearnedSkills,
+    directory: str | os.PathLike,
+    overwrite: bool = False,
+    env_name: str | None = None,
 ) -> Path:
-    """Write ``skills`` to ``directory`` atomically; returns the directory path."""
+    """Write ``skills`` to ``directory`` atomically; returns the directory path.
+
+    ``env_name`` is recorded so that tools can load the skills without being told which
+    environment's predicates to bind them to.
+    """
     target = Path(directory)
     if target.exists() and not overwrite:
         raise FileExistsError(f"{target} exists; pass overwrite=True to replace it")
@@ -62,6 +74,7 @@ def save_skills(
         index = {
             "format": FORMAT,
             "version": VERSION,
+            "env": env_name,
             "types": [
                 {"name": t.name, "features": list(t.feature_names)} for t in sorted(skills.types)
             ],
@@ -74,6 +87,9 @@ def save_skills(
             "skills": entries,
         }
         (tmp / INDEX).write_text(json.dumps(index, indent=2) + "\n")
+        (tmp / DOMAIN).write_text(
+            domain_pddl(env_name or "learned", skills.types, skills.predicates, skills.operators)
+        )
         _replace_dir(tmp, target)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -123,30 +139,57 @@ def _replace_dir(tmp: Path, target: Path) -> None:
 # ---------------------------------------------------------------------------------- load
 
 
+def saved_env_name(directory: str | os.PathLike) -> str | None:
+    """The environment name recorded in a skills directory (None if not recorded)."""
+    index = _read_index(Path(directory))
+    name = index.get("env")
+    return str(name) if name else None
+
+
+def _read_index(directory: Path) -> dict[str, Any]:
+    index_path = directory / INDEX
+    if not index_path.is_file():
+        raise ArtifactError(f"{directory} is not a skills directory (no {INDEX})")
+    try:
+        index = json.loads(index_path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise ArtifactError(f"{index_path}: not a readable skills index ({err})") from None
+    if (
+        not isinstance(index, dict)
+        or index.get("format") != FORMAT
+        or index.get("version") != VERSION
+    ):
+        got = (index.get("format"), index.get("version")) if isinstance(index, dict) else None
+        raise ArtifactError(
+            f"{index_path}: unsupported format {got!r} (expected {FORMAT!r} version {VERSION})"
+        )
+    return index
+
+
 def load_skills(
     directory: str | os.PathLike, predicates: Iterable[Predicate], types: Iterable[Type]
 ) -> LearnedSkills:
     """Load skills saved by :func:`save_skills`, binding names to the given predicates
     and types. Raises :class:`ArtifactError` naming whatever does not match."""
     directory = Path(directory)
-    index_path = directory / INDEX
-    if not index_path.is_file():
-        raise ArtifactError(f"{directory} is not a skills directory (no {INDEX})")
-    index = json.loads(index_path.read_text())
-    if index.get("format") != FORMAT or index.get("version") != VERSION:
-        raise ArtifactError(
-            f"{index_path}: unsupported format {index.get('format')!r} "
-            f"version {index.get('version')!r} (expected {FORMAT!r} version {VERSION})"
+    index = _read_index(directory)
+    try:
+        type_map = _bind_types(index["types"], types, directory)
+        pred_map = _bind_predicates(index["predicates"], predicates, type_map, directory)
+        skills = tuple(_read_skill(e, directory, pred_map, type_map) for e in index["skills"])
+        return LearnedSkills(
+            skills=skills,
+            predicates=frozenset(pred_map.values()),
+            config=_config_from_json(index["config"]),
+            stats=None if index.get("stats") is None else _stats_from_json(index["stats"]),
         )
-    type_map = _bind_types(index["types"], types, directory)
-    pred_map = _bind_predicates(index["predicates"], predicates, type_map, directory)
-    skills = tuple(_read_skill(e, directory, pred_map, type_map) for e in index["skills"])
-    return LearnedSkills(
-        skills=skills,
-        predicates=frozenset(pred_map.values()),
-        config=_config_from_json(index["config"]),
-        stats=None if index.get("stats") is None else _stats_from_json(index["stats"]),
-    )
+    except ArtifactError:
+        raise
+    except (KeyError, TypeError, ValueError, OSError, zipfile.BadZipFile) as err:
+        # a hand-edited index, a missing or truncated weights file ...
+        raise ArtifactError(
+            f"{directory}: damaged skills directory ({type(err).__name__}: {err})"
+        ) from None
 
 
 def _bind_types(saved: list[dict], types: Iterable[Type], where: Path) -> dict[str, Type]:

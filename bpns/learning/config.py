@@ -20,12 +20,18 @@ class MLPConfig:
     num_steps: int = 4000
     batch_size: int = 256
     learning_rate: float = 1e-3
-    # Standardisation: a feature whose std is below this is treated as constant (std 1),
-    # so it neither divides by zero nor amplifies noise at inference.
-    std_floor: float = 1e-6
+    # Standardisation divides by max(std, std_floor), in the features' own units (m, rad):
+    # variation below about a centimetre is noise to these networks, and must not be
+    # amplified into huge standardised inputs at inference.
+    std_floor: float = 1e-2
 
     def __post_init__(self) -> None:
-        if self.num_steps < 0 or self.batch_size < 1 or self.learning_rate <= 0.0:
+        if (
+            self.num_steps < 0
+            or self.batch_size < 1
+            or self.learning_rate <= 0.0
+            or not self.std_floor > 0.0
+        ):
             raise ValueError(f"invalid MLPConfig {self}")
         if any(h < 1 for h in self.hidden_sizes):
             raise ValueError(f"hidden sizes must be positive, got {self.hidden_sizes}")
@@ -36,6 +42,10 @@ class LearningConfig:
     """Everything the learning pipeline needs besides demos and predicates."""
 
     seed: int = 0
+    # Contact changes closer than this many steps are one event (see segmentation.py).
+    # 1 is the paper's literal segmentation; physical environments declare their own
+    # ``contact_settle_steps`` and `bpns learn` uses it.
+    settle_steps: int = 1
     # Skills whose datasets hold fewer than this fraction of all segments are dropped.
     min_segment_fraction: float = 0.01
     # False gives the BPNS-NoSubgoal baseline: policies see the state only, no sampler.
@@ -57,6 +67,8 @@ class LearningConfig:
             raise ValueError(
                 f"min_segment_fraction must be in [0, 1], got {self.min_segment_fraction}"
             )
+        if self.settle_steps < 1:
+            raise ValueError(f"settle_steps must be >= 1, got {self.settle_steps}")
         if self.max_rejection_tries < 1:
             raise ValueError(f"max_rejection_tries must be >= 1, got {self.max_rejection_tries}")
         if self.change_tolerance < 0.0:

@@ -91,10 +91,14 @@ class MLPParams:
 
 
 def standardisation(data: np.ndarray, std_floor: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per-column mean and std; columns with std below ``std_floor`` get std 1."""
+    """Per-column mean and std, the std raised to at least ``std_floor``.
+
+    Without the floor a nearly constant column (a block's x on a line, jittering by a
+    millimetre) is divided by its tiny std, and at planning time a centimetre of drift
+    becomes a 10-sigma input that the network extrapolates wildly from.
+    """
     mean = data.mean(axis=0)
-    std = data.std(axis=0)
-    std = np.where(std < std_floor, 1.0, std)
+    std = np.maximum(data.std(axis=0), std_floor)
     return mean.astype(np.float64), std.astype(np.float64)
 
 

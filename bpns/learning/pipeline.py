@@ -133,7 +133,9 @@ def learn_skills(
     timer = _Timer()
     say(f"segmenting {len(demos)} demonstrations")
     with timer.stage("segment"):
-        segments = segment_demonstrations(demos, predicates, contact_predicates)
+        segments = segment_demonstrations(
+            demos, predicates, contact_predicates, config.settle_steps
+        )
     if not segments:
         raise ValueError("the demonstrations contain no segment with effects: nothing to learn")
     say(f"partitioning {len(segments)} segments")

@@ -1,7 +1,13 @@
 """Temporal segmentation of demonstrations at contact switch points (paper §4.1).
 
 A switch point is a state whose contact-related ground atoms differ from the previous
-state's. Only contact atoms are needed at every state; the full abstraction is computed
+state's. In physics one event rarely flips its atoms in a single step: a released block
+bounces back against a pad for a step, or settles onto the table a step after the pads
+let go. Changes closer together than ``settle_steps`` are therefore one event, cut at
+its last change, and an event that restores the atoms it started from (a flicker) is
+no switch at all. ``settle_steps=1`` is the literal, every-change segmentation.
+
+Only contact atoms are needed at every state; the full abstraction is computed
 once per segment boundary, since evaluating every predicate on every state is the
 costly part of preprocessing.
 """
@@ -14,15 +20,31 @@ from bpns.abstraction import abstract
 from bpns.structs import Demonstration, GroundAtom, Predicate, Segment
 
 
-def switch_points(contact_atoms: list[frozenset[GroundAtom]]) -> list[int]:
-    """Indices i with contact_atoms[i] != contact_atoms[i - 1]."""
-    return [i for i in range(1, len(contact_atoms)) if contact_atoms[i] != contact_atoms[i - 1]]
+def switch_points(contact_atoms: list[frozenset[GroundAtom]], settle_steps: int = 1) -> list[int]:
+    """Indices at which the contact atoms change, with changes less than ``settle_steps``
+    apart merged into their last one and net-zero events (flickers) dropped."""
+    if settle_steps < 1:
+        raise ValueError(f"settle_steps must be >= 1, got {settle_steps}")
+    changes = [i for i in range(1, len(contact_atoms)) if contact_atoms[i] != contact_atoms[i - 1]]
+    cuts: list[int] = []
+    for i in changes:
+        if cuts and i - cuts[-1] < settle_steps:
+            cuts[-1] = i
+        else:
+            cuts.append(i)
+    out, last = [], contact_atoms[0] if contact_atoms else frozenset()
+    for i in cuts:
+        if contact_atoms[i] != last:
+            out.append(i)
+            last = contact_atoms[i]
+    return out
 
 
 def segment_demonstration(
     demo: Demonstration,
     predicates: Collection[Predicate],
     contact_predicates: Collection[Predicate],
+    settle_steps: int = 1,
 ) -> list[Segment]:
     """Split ``demo`` into segments ending at the first state after each contact change.
 
@@ -36,7 +58,7 @@ def segment_demonstration(
         )
     states = demo.states
     contact = [abstract(s, contact_predicates) for s in states]
-    boundaries = [0, *switch_points(contact)]
+    boundaries = [0, *switch_points(contact, settle_steps)]
     if boundaries[-1] != len(states) - 1:
         boundaries.append(len(states) - 1)
     full: dict[int, frozenset[GroundAtom]] = {
@@ -55,8 +77,11 @@ def segment_demonstrations(
     demos: Iterable[Demonstration],
     predicates: Collection[Predicate],
     contact_predicates: Collection[Predicate],
+    settle_steps: int = 1,
 ) -> list[Segment]:
     """All segments of all demos, in demo order (the order later stages rely on)."""
     return [
-        seg for demo in demos for seg in segment_demonstration(demo, predicates, contact_predicates)
+        seg
+        for demo in demos
+        for seg in segment_demonstration(demo, predicates, contact_predicates, settle_steps)
     ]

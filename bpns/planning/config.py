@@ -24,7 +24,9 @@ class PlanningConfig:
     max_skill_horizon: H_skill, most actions one skill may take for one subgoal.
     stuck_steps:       a rollout fails after this many consecutive steps in which no
                        feature moved by more than ``stuck_atol`` (saves waiting out H_skill).
-    stuck_atol:        absolute tolerance of the "state stopped changing" test.
+    stuck_atol:        absolute tolerance of the "state stopped changing" test, in the
+                       features' own units; it must sit above the contact jitter of
+                       a resting scene (1e-4: a tenth of a millimetre per step).
     max_plan_length:   most ground skills in one abstract plan.
     end_on_contact_change: end a skill at the first change of a contact-related atom (as
                        segmentation does): success if the expected atoms hold then, else
@@ -38,7 +40,7 @@ class PlanningConfig:
     search: str = "astar"
     max_skill_horizon: int = 200
     stuck_steps: int = 10
-    stuck_atol: float = 1e-6
+    stuck_atol: float = 1e-4
     max_plan_length: int = 100
     end_on_contact_change: bool = False
 

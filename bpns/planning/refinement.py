@@ -21,7 +21,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bpns.abstraction import object_tuples
-
 from bpns.environment import Environment
 from bpns.planning.config import PlanningConfig
 from bpns.planning.search import AbstractPlan

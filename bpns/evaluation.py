@@ -1,0 +1,302 @@
+"""Evaluate an approach on held-out tasks: plan each task, check the plan, summarise.
+
+Every solved plan is *validated*: its actions are re-simulated from the task's initial
+state and the goal must hold at the end (``f`` is exact, so this only fails if the
+planner or an environment breaks its contract). Test time is the wall-clock time of
+the ``plan`` call alone, measured inside the process that ran it.
+
+Tasks are independent, so they run in a process pool; each worker builds its own
+environment and skills from a picklable :class:`EvalSpec` (predicates are code and
+need not pickle).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import statistics
+import time
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bpns.abstraction import abstract
+from bpns.approaches import SkillSource, get_approach
+from bpns.environment import Environment
+from bpns.planning.bilevel import plan
+from bpns.planning.config import PlanningConfig
+from bpns.structs import Skill, Task
+
+
+class NoOracleSkillsError(ValueError):
+    """The environment declares no hand-written skills."""
+
+
+@dataclass(frozen=True)
+class EvalSpec:
+    """Everything a worker needs to rebuild the environment and skills by itself."""
+
+    env_name: str
+    approach: str
+    planning: PlanningConfig
+    skills_dir: str | None = None  # learned approaches only
+    task_seed: int = 0  # seed of the eval task stream
+    planner_seed: int = 0  # rng of sampling, per task: [planner_seed, task index]
+    train_tasks: bool = False  # evaluate on the train distribution instead
+    validate: bool = True
+
+
+@dataclass(frozen=True, eq=False)
+class TaskOutcome:
+    """The result of planning one task (``actions`` is empty unless solved)."""
+
+    index: int
+    solved: bool
+    seconds: float
+    reason: str | None
+    num_actions: int
+    nodes_created: int
+    abstract_plans: int
+    samples: int
+    sim_steps: int
+    validated: bool | None  # None when validation was off or the task unsolved
+    actions: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
+
+    def to_json(self) -> dict[str, Any]:
+        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        del d["actions"]
+        return d
+
+
+@dataclass(frozen=True, eq=False)
+class EvalReport:
+    """All outcomes of one approach on one task set, plus what produced them."""
+
+    env: str
+    approach: str
+    label: str
+    planning: PlanningConfig
+    outcomes: tuple[TaskOutcome, ...]
+    task_seed: int
+    num_demos: int | None = None
+    learning_seconds: float | None = None
+
+    @property
+    def num_tasks(self) -> int:
+        return len(self.outcomes)
+
+    @property
+    def num_solved(self) -> int:
+        return sum(o.solved for o in self.outcomes)
+
+    @property
+    def solved_percent(self) -> float:
+        return 100.0 * self.num_solved / max(1, self.num_tasks)
+
+    def _solved_times(self) -> list[float]:
+        return [o.seconds for o in self.outcomes if o.solved]
+
+    @property
+    def median_seconds(self) -> float:
+        """Median test time over solved tasks (as in the paper); NaN if none solved."""
+        times = self._solved_times()
+        return statistics.median(times) if times else math.nan
+
+    @property
+    def mean_seconds(self) -> float:
+        times = self._solved_times()
+        return statistics.fmean(times) if times else math.nan
+
+    @property
+    def mean_nodes(self) -> float:
+        """Mean abstract-search nodes created over all tasks."""
+        return statistics.fmean(o.nodes_created for o in self.outcomes) if self.outcomes else 0.0
+
+    @property
+    def failures(self) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for o in self.outcomes:
+            if not o.solved:
+                out[str(o.reason)] = out.get(str(o.reason), 0) + 1
+        return out
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "env": self.env,
+            "approach": self.approach,
+            "label": self.label,
+            "task_seed": self.task_seed,
+            "num_demos": self.num_demos,
+            "learning_seconds": self.learning_seconds,
+            "planning": dataclasses.asdict(self.planning),
+            "summary": {
+                "num_tasks": self.num_tasks,
+                "num_solved": self.num_solved,
+                "solved_percent": self.solved_percent,
+                "median_seconds": _finite_or_none(self.median_seconds),
+                "mean_seconds": _finite_or_none(self.mean_seconds),
+                "mean_nodes_created": self.mean_nodes,
+                "failures": self.failures,
+            },
+            "tasks": [o.to_json() for o in self.outcomes],
+        }
+
+
+def _finite_or_none(x: float) -> float | None:
+    return x if math.isfinite(x) else None
+
+
+TABLE_HEADER = (
+    "| Approach | Demos | Solved | Median time (s) | Mean time (s) | Nodes created "
+    "| Learning time (s) |\n|---|---:|---:|---:|---:|---:|---:|"
+)
+
+
+def table_row(report: EvalReport) -> str:
+    def num(x: float | None, fmt: str) -> str:
+        return "–" if x is None or not math.isfinite(x) else format(x, fmt)
+
+    return (
+        f"| {report.label} | {report.num_demos if report.num_demos is not None else '–'} "
+        f"| {report.num_solved}/{report.num_tasks} ({report.solved_percent:.1f}%) "
+        f"| {num(report.median_seconds, '.2f')} | {num(report.mean_seconds, '.2f')} "
+        f"| {report.mean_nodes:.1f} | {num(report.learning_seconds, '.1f')} |"
+    )
+
+
+def markdown_table(reports: Sequence[EvalReport]) -> str:
+    """One row per report; times are over solved tasks, nodes are means over all tasks."""
+    return "\n".join([TABLE_HEADER, *(table_row(r) for r in reports)]) + "\n"
+
+
+# ------------------------------------------------------------------------ running tasks
+
+
+def skills_for(spec: EvalSpec, env: Environment) -> list[Skill]:
+    """The skills ``spec.approach`` plans with, built in this process."""
+    approach = get_approach(spec.approach)
+    if approach.skills is SkillSource.ORACLE:
+        make = getattr(env, "oracle_skills", None)
+        if make is None:
+            raise NoOracleSkillsError(f"environment {env.name!r} declares no oracle skills")
+        return list(make())
+    if spec.skills_dir is None:
+        raise ValueError(f"approach {spec.approach!r} needs a skills directory")
+    from bpns.learning.artifacts import load_skills
+
+    return list(load_skills(spec.skills_dir, env.predicates, env.types).skills)
+
+
+def solve_task(
+    task: Task,
+    index: int,
+    skills: Sequence[Skill],
+    env: Environment,
+    config: PlanningConfig,
+    rng: np.random.Generator,
+    validate: bool = True,
+) -> TaskOutcome:
+    """Plan ``task`` once, time it and (optionally) validate the plan by re-simulation."""
+    t0 = time.perf_counter()
+    result = plan(task, skills, env, config, rng)
+    seconds = time.perf_counter() - t0
+    validated = None
+    if result.success and validate:
+        validated = plan_reaches_goal(env, task, result.actions)
+    s = result.stats
+    return TaskOutcome(
+        index=index,
+        solved=bool(result.success and validated is not False),
+        seconds=seconds,
+        reason=None if result.success else str(result.reason),
+        num_actions=len(result.actions),
+        nodes_created=s.nodes_created,
+        abstract_plans=s.abstract_plans_tried,
+        samples=s.samples_drawn,
+        sim_steps=s.sim_steps,
+        validated=validated,
+        actions=result.actions,
+    )
+
+
+def plan_reaches_goal(env: Environment, task: Task, actions: np.ndarray) -> bool:
+    """Re-simulate ``actions`` from ``task.init``; does the goal hold at the end?"""
+    state = task.init
+    for action in actions:
+        state = env.simulate(state, action)
+    return task.goal_holds(abstract(state, env.goal_predicates))
+
+
+_WORKER: dict[str, Any] = {}
+
+
+def _init_worker(spec: EvalSpec) -> None:
+    from bpns.registry import make_environment
+
+    env = make_environment(spec.env_name)
+    _WORKER.update(spec=spec, env=env, skills=skills_for(spec, env))
+
+
+def _run_index(index: int) -> TaskOutcome:
+    spec: EvalSpec = _WORKER["spec"]
+    env: Environment = _WORKER["env"]
+    task = env.task(index, spec.task_seed, spec.train_tasks)
+    rng = np.random.default_rng([spec.planner_seed, index])
+    return solve_task(task, index, _WORKER["skills"], env, spec.planning, rng, spec.validate)
+
+
+def run_tasks(spec: EvalSpec, indices: Sequence[int], workers: int = 1) -> Iterator[TaskOutcome]:
+    """Yield one outcome per task index, in order. ``workers`` > 1 uses a process pool."""
+    if workers <= 1 or len(indices) <= 1:
+        _init_worker(spec)
+        try:
+            yield from map(_run_index, indices)
+        finally:
+            _WORKER.clear()
+        return
+    with ProcessPoolExecutor(
+        max_workers=min(workers, len(indices)), initializer=_init_worker, initargs=(spec,)
+    ) as pool:
+        yield from pool.map(_run_index, indices)
+
+
+def evaluate(
+    spec: EvalSpec,
+    num_tasks: int,
+    workers: int = 1,
+    num_demos: int | None = None,
+    learning_seconds: float | None = None,
+    progress: Callable[[Iterator[TaskOutcome], int], Iterator[TaskOutcome]] | None = None,
+) -> EvalReport:
+    """Plan tasks 0..num_tasks-1 of the seeded eval stream with ``spec``'s approach."""
+    if num_tasks < 1:
+        raise ValueError(f"num_tasks must be >= 1, got {num_tasks}")
+    stream = run_tasks(spec, range(num_tasks), workers)
+    if progress is not None:
+        stream = progress(stream, num_tasks)
+    outcomes = tuple(stream)
+    approach = get_approach(spec.approach)
+    return EvalReport(
+        env=spec.env_name,
+        approach=approach.name,
+        label=approach.label,
+        planning=spec.planning,
+        outcomes=outcomes,
+        task_seed=spec.task_seed,
+        num_demos=num_demos,
+        learning_seconds=learning_seconds,
+    )
+
+
+def save_plans(path: str | Path, report: EvalReport) -> None:
+    """Actions of every solved task as ``task_<index>`` arrays in one .npz (atomic)."""
+    from bpns.atomic import atomic_path
+
+    arrays = {f"task_{o.index}": o.actions for o in report.outcomes if o.solved}
+    with atomic_path(Path(path)) as tmp:
+        with open(tmp, "wb") as f:
+            np.savez(f, **arrays)

@@ -1,0 +1,105 @@
+"""The evaluation harness: per-task outcomes, validated plans, summaries, approach settings."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bpns.approaches import APPROACHES, SkillSource, get_approach
+from bpns.evaluation import (
+    EvalReport,
+    TaskOutcome,
+    markdown_table,
+    plan_reaches_goal,
+    solve_task,
+)
+from bpns.planning.config import PlanningConfig
+
+
+def _outcome(index: int, solved: bool, seconds: float, nodes: int = 4) -> TaskOutcome:
+    return TaskOutcome(
+        index=index,
+        solved=solved,
+        seconds=seconds,
+        reason=None if solved else "timeout",
+        num_actions=10 if solved else 0,
+        nodes_created=nodes,
+        abstract_plans=1,
+        samples=2,
+        sim_steps=20,
+        validated=True if solved else None,
+    )
+
+
+def _report(outcomes, label="BPNS") -> EvalReport:
+    return EvalReport(
+        env="toy",
+        approach="bpns",
+        label=label,
+        planning=PlanningConfig(),
+        outcomes=tuple(outcomes),
+        task_seed=0,
+        num_demos=100,
+        learning_seconds=12.5,
+    )
+
+
+def test_times_are_summarised_over_solved_tasks_and_nodes_over_all():
+    report = _report(
+        [_outcome(0, True, 1.0, 2), _outcome(1, True, 3.0, 4), _outcome(2, False, 60.0, 9)]
+    )
+    assert report.num_solved == 2 and report.solved_percent == pytest.approx(200 / 3)
+    assert report.median_seconds == 2.0 and report.mean_seconds == 2.0
+    assert report.mean_nodes == 5.0
+    assert report.failures == {"timeout": 1}
+    summary = report.to_json()["summary"]
+    assert summary["num_solved"] == 2 and summary["failures"] == {"timeout": 1}
+
+
+def test_a_report_with_nothing_solved_has_no_times_but_still_renders():
+    report = _report([_outcome(0, False, 5.0)])
+    assert math.isnan(report.median_seconds)
+    assert report.to_json()["summary"]["median_seconds"] is None
+    row = markdown_table([report]).splitlines()[-1]
+    assert row.startswith("| BPNS | 100 | 0/1 (0.0%) | – | – |")
+
+
+def test_markdown_table_has_one_row_per_approach_with_the_issue_columns():
+    table = markdown_table(
+        [_report([_outcome(0, True, 0.5)]), _report([_outcome(0, True, 0.1)], "Oracle")]
+    )
+    lines = table.strip().splitlines()
+    assert "Solved" in lines[0] and "Median time" in lines[0] and "Learning time" in lines[0]
+    assert "Nodes created" in lines[0] and "Mean time" in lines[0]
+    assert len(lines) == 4 and lines[3].startswith("| Oracle |")
+
+
+def test_ablations_are_planner_settings_of_the_same_learned_skills():
+    base = PlanningConfig(n_samples=10, n_abstract=8, timeout=5.0)
+    assert get_approach("samples1").planning_config(base).n_samples == 1
+    assert get_approach("abstract1").planning_config(base).n_abstract == 1
+    assert get_approach("bpns").planning_config(base) == base
+    assert APPROACHES["oracle"].skills is SkillSource.ORACLE
+    assert {a.skills for n, a in APPROACHES.items() if n != "oracle"} == {SkillSource.LEARNED}
+    with pytest.raises(KeyError, match="unknown approach 'nope'"):
+        get_approach("nope")
+
+
+def test_solve_task_validates_the_plan_by_resimulating_it(cover_env):
+    task = cover_env.task(0, 0, False)
+    outcome = solve_task(
+        task,
+        0,
+        cover_env.oracle_skills(),
+        cover_env,
+        PlanningConfig(timeout=60.0),
+        np.random.default_rng(0),
+    )
+    assert outcome.solved and outcome.validated is True
+    assert outcome.num_actions == len(outcome.actions) > 0
+    assert outcome.nodes_created >= 1 and outcome.sim_steps >= outcome.num_actions
+    # the actions alone (no planner state) solve the task; a truncated plan does not
+    assert plan_reaches_goal(cover_env, task, outcome.actions)
+    assert not plan_reaches_goal(cover_env, task, outcome.actions[:5])
