@@ -1,0 +1,258 @@
+"""Scripted Stick Button demonstrator: closed-loop on features, acting only through actions.
+
+First every unpressed button within the fingertips' reach is pressed with the closed
+fingers (nearest first). If buttons remain, the stick is picked up by its free part, at a
+grasp point drawn so that the tip reaches every remaining button with the hand inside
+its comfortable reach (grasping nearer the holder reaches further), and each remaining
+button is pressed with the tip. A press moves the pusher (fingertips or tip, whose offset
+from the hand is re-measured every step) above the cap, lowers it to just above the cap
+and then pushes slowly until the joint reading says Pressed, so the stick is not jolted
+in the grasp.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from bpns.structs import Object, State, Task
+from mj_envs.stick_button import (
+    BUTTON,
+    HOLDER_LENGTH,
+    ROBOT,
+    STICK,
+    STICK_LENGTH,
+    TIP_INSET,
+)
+
+SAFE_Z = 0.15  # hand height for travel: the held stick clears every cap
+GAIN = 0.7
+POS_TOL = 0.003
+FINGERTIP_DROP = 0.012  # closed fingertips' lowest point below the gripper centre
+APPROACH_CLEARANCE = 0.008  # pusher height above the cap before the slow push
+PRESS_SPEED = 0.003  # metres per step while pushing
+FINGER_REACH = 0.80  # buttons closer than this (xy, from the base) are pressed by hand
+HAND_REACH = 0.76  # where the hand may go while pressing with the stick
+GRASP_Z_ABOVE_CENTRE = 0.005
+GRASP_MIN = HOLDER_LENGTH + 0.018  # grasp offsets from the back end: the free part only
+GRASP_MAX = STICK_LENGTH - 0.04
+TIP_FROM_BACK = STICK_LENGTH - TIP_INSET
+SLOW_ZONE, SLOW_STEP = 0.06, 0.006  # last 6 cm of a descent at <= 6 mm per step
+MAX_PRESS_STEPS = 40
+MAX_CLOSE_STEPS = 20
+EXTRA_CLOSE_STEPS = 3
+MAX_PHASE_STEPS = 150
+
+Phase = Callable[[State], "np.ndarray | None"]
+
+
+class DemonstrationFailed(RuntimeError):
+    """The scripted demonstrator could not carry on (reported, never silent)."""
+
+
+def move_action(state: State, robot: Object, goal_xyz: np.ndarray, grip: float) -> np.ndarray:
+    """Proportional step toward ``goal_xyz``; the gain < 1 absorbs the arm's tracking lag."""
+    return np.array([*(GAIN * (goal_xyz - state.data[robot][:3])), grip])
+
+
+def slow_near(state: State, robot: Object, goal_xyz: np.ndarray, grip: float) -> np.ndarray:
+    """Like :func:`move_action`, but at most ``SLOW_STEP`` per step in z close to the goal.
+
+    The arm lags its command, so a full-speed descent overshoots by several millimetres:
+    enough to put the fingertips on the table.
+    """
+    action = move_action(state, robot, goal_xyz, grip)
+    if state.get(robot, "z") - goal_xyz[2] < SLOW_ZONE:
+        action[2] = max(action[2], -SLOW_STEP)
+    return action
+
+
+def at(state: State, robot: Object, goal_xyz: np.ndarray, tol: float = POS_TOL) -> bool:
+    return bool(np.all(np.abs(state.data[robot][:3] - goal_xyz) <= tol))
+
+
+def reachable_by_hand(state: State, button: Object) -> bool:
+    return float(np.hypot(state.get(button, "x"), state.get(button, "y"))) <= FINGER_REACH
+
+
+def pusher(state: State, robot: Object, stick: Object | None) -> np.ndarray:
+    """Lowest point that presses: the closed fingertips, or the held stick's tip."""
+    if stick is None:
+        return state.data[robot][:3] - np.array([0.0, 0.0, FINGERTIP_DROP])
+    return np.array(
+        [state.get(stick, "tip_x"), state.get(stick, "tip_y"), state.get(stick, "tip_z")]
+    )
+
+
+def hand_goal_for_pusher(
+    state: State, robot: Object, stick: Object | None, pusher_goal: np.ndarray
+) -> np.ndarray:
+    """Hand position that puts the pusher at ``pusher_goal`` (offset measured now)."""
+    return state.data[robot][:3] + pusher_goal - pusher(state, robot, stick)
+
+
+def stick_axis(state: State, stick: Object) -> tuple[np.ndarray, np.ndarray]:
+    """(back end xy, unit direction toward the tip) of the stick, from its features."""
+    centre = np.array([state.get(stick, "x"), state.get(stick, "y")])
+    tip = np.array([state.get(stick, "tip_x"), state.get(stick, "tip_y")])
+    axis = (tip - centre) / max(float(np.linalg.norm(tip - centre)), 1e-9)
+    return centre - axis * STICK_LENGTH / 2, axis
+
+
+def grasp_limit_for(state: State, buttons: list[Object]) -> float:
+    """Largest grasp offset (from the back end) whose tip reaches every button in ``buttons``.
+
+    With the stick along +x the hand sits ``TIP_FROM_BACK - g`` behind the button; that
+    point must lie within ``HAND_REACH`` of the base.
+    """
+    limit = GRASP_MAX
+    for b in buttons:
+        bx, by = state.get(b, "x"), state.get(b, "y")
+        if abs(by) >= HAND_REACH:
+            return -np.inf
+        limit = min(limit, TIP_FROM_BACK - bx + float(np.sqrt(HAND_REACH**2 - by**2)))
+    return limit
+
+
+def sample_grasp_offset(state: State, buttons: list[Object], rng: np.random.Generator) -> float:
+    hi = grasp_limit_for(state, buttons)
+    if hi < GRASP_MIN:
+        raise DemonstrationFailed("no grasp on the stick's free part reaches every button")
+    return float(rng.uniform(GRASP_MIN, hi))
+
+
+def grasp_point(state: State, stick: Object, offset: float) -> np.ndarray:
+    back, axis = stick_axis(state, stick)
+    xy = back + axis * offset
+    return np.array([xy[0], xy[1], state.get(stick, "z") + GRASP_Z_ABOVE_CENTRE])
+
+
+def press_phases(robot: Object, button: Object, stick: Object | None, grip: float) -> list[Phase]:
+    """Rise, travel above ``button``, lower the pusher to just above the cap, push slowly."""
+    count = {"press": 0}
+
+    def target_xy(s: State) -> np.ndarray:
+        return np.array([s.get(button, "x"), s.get(button, "y")])
+
+    def rise(s: State) -> np.ndarray | None:
+        goal = np.array([s.get(robot, "x"), s.get(robot, "y"), SAFE_Z])
+        return None if at(s, robot, goal, 0.01) else move_action(s, robot, goal, grip)
+
+    def travel(s: State) -> np.ndarray | None:
+        goal = hand_goal_for_pusher(s, robot, stick, np.array([*target_xy(s), 0.0]))
+        goal[2] = SAFE_Z
+        return None if at(s, robot, goal, 2 * POS_TOL) else move_action(s, robot, goal, grip)
+
+    def approach(s: State) -> np.ndarray | None:
+        z = s.get(button, "z") + APPROACH_CLEARANCE
+        goal = hand_goal_for_pusher(s, robot, stick, np.array([*target_xy(s), z]))
+        return None if at(s, robot, goal) else move_action(s, robot, goal, grip)
+
+    def push(s: State) -> np.ndarray | None:
+        if s.get(button, "pressed") > 0.5:
+            return None
+        count["press"] += 1
+        if count["press"] > MAX_PRESS_STEPS:
+            raise DemonstrationFailed(f"could not press {button.name}")
+        p = pusher(s, robot, stick)
+        dxy = GAIN * (target_xy(s) - p[:2])
+        return np.array([dxy[0], dxy[1], -PRESS_SPEED, grip])
+
+    return [rise, travel, approach, push, rise]
+
+
+def pick_phases(robot: Object, stick: Object, offset: float) -> list[Phase]:
+    """Open and rise, go above the grasp point, descend, close until both pads touch, lift."""
+    closing = {"steps": 0, "extra": 0}
+
+    def rise(s: State) -> np.ndarray | None:
+        goal = np.array([s.get(robot, "x"), s.get(robot, "y"), SAFE_Z])
+        return None if at(s, robot, goal, 0.01) else move_action(s, robot, goal, 1.0)
+
+    def travel(s: State) -> np.ndarray | None:
+        goal = grasp_point(s, stick, offset)
+        goal[2] = SAFE_Z
+        return None if at(s, robot, goal, 2 * POS_TOL) else move_action(s, robot, goal, 1.0)
+
+    def descend(s: State) -> np.ndarray | None:
+        goal = grasp_point(s, stick, offset)
+        if at(s, robot, goal) and s.get(robot, "fingers") > 0.035:
+            return None
+        return slow_near(s, robot, goal, 1.0)
+
+    def close(s: State) -> np.ndarray | None:
+        closing["steps"] += 1
+        if closing["steps"] > MAX_CLOSE_STEPS:
+            raise DemonstrationFailed(f"could not grasp {stick.name}")
+        if s.get(stick, "grasped") > 0.5:
+            closing["extra"] += 1
+            if closing["extra"] > EXTRA_CLOSE_STEPS:
+                return None
+        return move_action(s, robot, grasp_point(s, stick, offset), -1.0)
+
+    def lift(s: State) -> np.ndarray | None:
+        if s.get(stick, "grasped") < 0.5:
+            raise DemonstrationFailed(f"dropped {stick.name}")
+        goal = np.array([s.get(robot, "x"), s.get(robot, "y"), SAFE_Z])
+        if at(s, robot, goal, 0.01):
+            return None
+        action = move_action(s, robot, goal, -1.0)
+        if s.get(robot, "z") < SAFE_Z / 2:  # ease the stick out of the holder
+            action[2] = min(action[2], SLOW_STEP)
+        return action
+
+    return [rise, travel, descend, close, lift]
+
+
+class StickButtonDemonstrator:
+    """A stateful closed-loop oracle policy for one task (call it once per step)."""
+
+    def __init__(self, task: Task, rng: np.random.Generator) -> None:
+        self.task = task
+        self.rng = rng
+        self.robot = next(o for o in task.objects if o.type == ROBOT)
+        self.stick = next(o for o in task.objects if o.type == STICK)
+        self.buttons = [o for o in task.objects if o.type == BUTTON]
+        self._phases: list[Phase] = []
+        self._phase_steps = 0
+        self._holding = False
+
+    def __call__(self, state: State) -> np.ndarray:
+        while True:
+            if not self._phases:
+                self._phases = self._plan(state)
+                if not self._phases:
+                    return np.array([0.0, 0.0, 0.0, -1.0 if self._holding else 0.0])
+            action = self._phases[0](state)
+            if action is not None:
+                self._phase_steps += 1
+                if self._phase_steps > MAX_PHASE_STEPS:
+                    raise DemonstrationFailed("a phase of the demonstration did not finish")
+                return action
+            self._phases.pop(0)
+            self._phase_steps = 0
+
+    def _plan(self, state: State) -> list[Phase]:
+        """Phases for the next button (or for picking the stick first)."""
+        todo = [b for b in self.buttons if state.get(b, "pressed") < 0.5]
+        if not todo:
+            return []
+        hand = state.data[self.robot][:2]
+        if not self._holding:
+            by_hand = [b for b in todo if reachable_by_hand(state, b)]
+            if by_hand:
+                b = min(by_hand, key=lambda o: float(np.linalg.norm(state.data[o][:2] - hand)))
+                return press_phases(self.robot, b, None, grip=-1.0)
+            offset = sample_grasp_offset(state, todo, self.rng)
+            self._holding = True
+            return pick_phases(self.robot, self.stick, offset)
+        if state.get(self.stick, "grasped") < 0.5:
+            raise DemonstrationFailed(f"lost {self.stick.name}")
+        tip = np.array([state.get(self.stick, "tip_x"), state.get(self.stick, "tip_y")])
+        b = min(todo, key=lambda o: float(np.linalg.norm(state.data[o][:2] - tip)))
+        return press_phases(self.robot, b, self.stick, grip=-1.0)
+
+
+def demonstrator(task: Task, rng: np.random.Generator) -> StickButtonDemonstrator:
+    return StickButtonDemonstrator(task, rng)
