@@ -5,7 +5,8 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= outputs/cover
-N      ?= 10
+N      ?= 50
+TASKS  ?= 10
 
 .PHONY: run test bench results lint clean system-deps
 
@@ -33,13 +34,14 @@ system-deps:
 	fi
 
 run: $(STAMP)
-	$(VENV)/bin/bpns run --env cover --demos $(N) --out $(OUT)
+	$(VENV)/bin/bpns run --env cover --demos $(N) --tasks $(TASKS) --timeout 30 --out $(OUT)
 
 test: $(STAMP)
 	$(PY) -m pytest -q
 
 bench: $(STAMP)
 	$(PY) scripts/bench_control.py
+	$(PY) scripts/bench_planning.py --env cover --demos 100 -n 20
 
 results: $(STAMP)
 	$(PY) scripts/make_results.py

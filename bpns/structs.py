@@ -265,6 +265,10 @@ class Skill:
     operator: STRIPSOperator
     policy: SubgoalPolicy
     sampler: SubgoalSampler
+    # Most actions one rollout of this skill may take (None: only the planner's limit).
+    # Learned skills derive it from the longest demonstrated segment: a rollout that runs
+    # far longer than any demonstration of the skill has failed.
+    horizon: int | None = None
 
     @property
     def name(self) -> str:

@@ -92,14 +92,14 @@ class MujocoEnv(abc.ABC):
         """Whether the finger command is obeyed in ``state`` (Cover's allowed regions)."""
         return True
 
-    def after_step(self, world: World) -> None:
+    def after_step(self, world: World) -> None:  # noqa: B027  (an optional hook)
         """Domain physics beyond MuJoCo's (e.g. button latches).
 
         It may only edit what the flat state saves (userdata, ``eq_active``, ...), so that
         replay stays exact; never the model.
         """
 
-    def decorate(self, world: World) -> None:
+    def decorate(self, world: World) -> None:  # noqa: B027  (an optional hook)
         """Set looks that follow the loaded state (e.g. colours) before a frame is drawn.
 
         Geom colours live in the model, not in the simulator state, so a domain that wants
@@ -209,4 +209,8 @@ class MujocoEnv(abc.ABC):
             return set()
         geoms = d.contact.geom[:n]
         dist = d.contact.dist[:n]
-        return {(int(min(a, b)), int(max(a, b))) for (a, b), x in zip(geoms, dist) if x <= 0.0}
+        return {
+            (int(min(a, b)), int(max(a, b)))
+            for (a, b), x in zip(geoms, dist, strict=True)
+            if x <= 0.0
+        }

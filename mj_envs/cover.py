@@ -204,13 +204,21 @@ class CoverEnv(MujocoEnv):
         def touching(g1: int, g2: int) -> bool:
             return (min(g1, g2), max(g1, g2)) in contacts
 
+        geom_ids: dict[str, int] = ids.setdefault("geoms", {})
+
+        def geom(name: str) -> int:
+            g = geom_ids.get(name)
+            if g is None:
+                g = geom_ids[name] = m.geom(name).id
+            return g
+
         out: dict[Object, np.ndarray] = {}
         for obj in objects:
             if obj.type == ROBOT:
                 x, y, z = d.site_xpos[ids["site"]]
                 out[obj] = np.array([x, y, z, d.qpos[ids["finger"]]])
             elif obj.type == BLOCK:
-                g = m.geom(f"{obj.name}_geom").id
+                g = geom(f"{obj.name}_geom")
                 x, y, z = d.geom_xpos[g]
                 grasped = touching(g, ids["left_pad"]) and touching(g, ids["right_pad"])
                 out[obj] = np.array(
@@ -225,10 +233,10 @@ class CoverEnv(MujocoEnv):
                     ]
                 )
             elif obj.type == TARGET:
-                g = m.geom(obj.name).id
+                g = geom(obj.name)
                 out[obj] = np.array([d.geom_xpos[g][0], d.geom_xpos[g][1], 2 * m.geom_size[g][1]])
             elif obj.type == REGION:
-                g = m.geom(obj.name).id
+                g = geom(obj.name)
                 y, half = d.geom_xpos[g][1], m.geom_size[g][1]
                 out[obj] = np.array([y - half, y + half])
             else:

@@ -24,6 +24,8 @@ from mj_envs.cover import BLOCK, LINE_X, ROBOT, TARGET, TARGET_REGION_HALF
 SAFE_Z = 0.12  # travel height of the hand (block tops are at 0.04)
 GAIN = 0.7  # proportional gain < 1 absorbs the arm's tracking lag
 FUNNEL_SLOPE = 4.0  # required height above the goal per metre of horizontal distance
+GRASP_DEADZONE = 0.005  # within this horizontal distance of a grasp the hand descends
+# fully: a policy imitating the funnel with a few mm of xy error must not hover above it
 FUNNEL_BAND = 0.02  # sideways motion fades in over this much height deficit
 GRASP_Z_ABOVE_CENTRE = 0.006  # keeps the fingertips off the table
 CLOSE_TOL = 0.006  # close the fingers once the hand is this near the grasp point
@@ -45,10 +47,13 @@ def at(state: State, robot: Object, goal_xyz: np.ndarray, tol: float = POS_TOL) 
     return bool(np.all(np.abs(state.data[robot][:3] - goal_xyz) <= tol))
 
 
-def funnel_action(state: State, robot: Object, goal_xyz: np.ndarray, grip: float) -> np.ndarray:
-    """Step toward ``goal_xyz`` along the funnel (rise, travel, descend in one motion)."""
+def funnel_action(
+    state: State, robot: Object, goal_xyz: np.ndarray, grip: float, deadzone: float = 0.0
+) -> np.ndarray:
+    """Step toward ``goal_xyz`` along the funnel (rise, travel, descend in one motion);
+    within ``deadzone`` of it horizontally the funnel is flat."""
     pos = state.data[robot][:3]
-    d = float(np.hypot(*(goal_xyz[:2] - pos[:2])))
+    d = max(0.0, float(np.hypot(*(goal_xyz[:2] - pos[:2]))) - deadzone)
     z_req = goal_xyz[2] + min(max(SAFE_Z - goal_xyz[2], 0.0), FUNNEL_SLOPE * d)
     sideways = float(np.clip(1.0 - (z_req - pos[2]) / FUNNEL_BAND, 0.0, 1.0))
     return np.array(
@@ -71,7 +76,7 @@ def pick_action(state: State, robot: Object, block: Object, hand_y: float) -> np
     """Funnel to the grasp point with the fingers open, then close there."""
     goal = grasp_point(state, block, hand_y)
     near = np.linalg.norm(state.data[robot][:3] - goal) <= CLOSE_TOL
-    return funnel_action(state, robot, goal, grip=-1.0 if near else 1.0)
+    return funnel_action(state, robot, goal, -1.0 if near else 1.0, GRASP_DEADZONE)
 
 
 def place_action(state: State, robot: Object, block: Object, hand_y: float) -> np.ndarray:

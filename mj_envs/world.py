@@ -48,8 +48,8 @@ class World:
         self.cache: dict[str, Any] = {}  # the domain's per-scene lookups (ids, slices)
 
     @staticmethod
-    def from_xml(xml: str, controller_config: ControllerConfig = ControllerConfig()) -> World:
-        return _cached_world(xml, controller_config)
+    def from_xml(xml: str, controller_config: ControllerConfig | None = None) -> World:
+        return _cached_world(xml, controller_config or ControllerConfig())
 
     def __reduce__(self):
         return (World.from_xml, (self.xml, self.controller.config))
@@ -66,7 +66,8 @@ class World:
     def load(self, flat: np.ndarray) -> None:
         if flat.shape != (self.state_size,):
             raise ValueError(
-                f"flat simulator state has shape {flat.shape}, this scene needs ({self.state_size},)"
+                f"flat simulator state has shape {flat.shape}, "
+                f"this scene needs ({self.state_size},)"
             )
         mujoco.mj_setState(self.model, self.data, flat, STATE_SPEC)
         mujoco.mj_forward(self.model, self.data)

@@ -132,3 +132,35 @@ def test_a_damaged_skills_directory_is_reported_not_raised(run_dir, tmp_path):
     proc = _cli("skills", "show", str(broken))
     assert proc.returncode == 2 and "damaged skills directory" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_a_learned_policy_with_nan_weights_fails_its_samples_not_the_planner(run_dir, cover_env):
+    import dataclasses
+
+    import numpy as np
+
+    from bpns.learning.artifacts import load_skills
+    from bpns.learning.mlp import MLPParams
+    from bpns.learning.policies import LearnedPolicy
+    from bpns.planning.bilevel import plan
+    from bpns.planning.config import PlanningConfig
+
+    learned = load_skills(run_dir / "skills", cover_env.predicates, cover_env.types)
+    broken = []
+    for skill in learned.skills:
+        p = skill.policy.params
+        nan_params = MLPParams(
+            tuple(np.full_like(w, np.nan) for w in p.weights),
+            p.biases,
+            p.input_mean,
+            p.input_std,
+            p.output_mean,
+            p.output_std,
+        )
+        policy = LearnedPolicy(skill.policy.dims, nan_params, skill.policy.use_subgoals)
+        broken.append(dataclasses.replace(skill, policy=policy))
+    config = PlanningConfig(n_samples=3, n_abstract=2, timeout=30.0)
+    result = plan(cover_env.task(0, 0, False), broken, cover_env, config, np.random.default_rng(0))
+    assert not result.success and str(result.reason) == "refinement_failed"
+    assert dict(result.stats.sample_failures) == {"policy_nonfinite": result.stats.samples_drawn}
+    assert result.stats.sim_steps == 0

@@ -15,7 +15,7 @@ def test_saved_demos_replay_exactly_from_their_first_state(tmp_path, cover_env, 
     assert save_demonstrations(path, cover_env, cover_demos) == len(cover_demos)
     loaded = load_demonstrations(path, cover_env)
     assert len(loaded) == len(cover_demos)
-    for i, (orig, back) in enumerate(zip(cover_demos, loaded)):
+    for i, (orig, back) in enumerate(zip(cover_demos, loaded, strict=True)):
         assert np.array_equal(orig.actions, back.actions)
         assert back.task.goal == orig.task.goal
         report = replay(cover_env, back, i)

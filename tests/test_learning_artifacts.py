@@ -36,6 +36,7 @@ def test_round_trip_gives_identical_outputs(skills, tmp_path):
     assert back.predicates == skills.predicates
     state = toy.make_state(4.1, [4.0, 7.5], [2.0, 9.0], held=0)
     for orig, loaded in zip(skills.skills, back.skills, strict=True):
+        assert loaded.horizon == orig.horizon is not None
         objs = (B0, R) if len(orig.operator.parameters) == 2 else (B0, R, T0)
         goal = orig.sampler(state, objs, np.random.default_rng(0))
         np.testing.assert_array_equal(goal, loaded.sampler(state, objs, np.random.default_rng(0)))
@@ -118,5 +119,5 @@ def test_no_subgoal_skills_round_trip(tmp_path):
 def test_describe_lists_every_operator(skills):
     text = describe(skills)
     assert text.startswith("2 skills learned from 30 demonstrations")
-    assert "Op0(?block0:block, ?robot0:robot)    [60 segments]" in text
+    assert "Op0(?block0:block, ?robot0:robot)    [60 segments, horizon " in text
     assert "add: Covers(?block0, ?target0), HandEmpty(?robot0)" in text

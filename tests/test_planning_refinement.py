@@ -222,3 +222,20 @@ def test_skills_must_match_plan_steps():
     plan = skeleton(task, STICK_PLAN)
     with pytest.raises(ValueError):
         refine(plan, toy.skills()[:2], task, ENV, PlanningConfig(), np.random.default_rng(0))
+
+
+def test_a_skill_horizon_shorter_than_the_planners_ends_its_rollouts_first():
+    import dataclasses
+
+    task = toy.make_task([4.0])  # pressing needs 8 steps
+    skills = [
+        dataclasses.replace(s, horizon=3) if s.operator == toy.PRESS_DIRECT else s
+        for s in toy.skills()
+    ]
+    res = run(
+        task,
+        [(toy.PRESS_DIRECT, ("robot", "button0"))],
+        skills,
+        PlanningConfig(n_samples=2, max_skill_horizon=50),
+    )
+    assert res.stats.failures("skill_horizon") == 2 and res.stats.sim_steps == 6

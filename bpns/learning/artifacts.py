@@ -110,6 +110,7 @@ def _write_skill(skill: Skill, directory: Path) -> dict[str, Any]:
         "add_effects": _atoms_json(op.add_effects),
         "delete_effects": _atoms_json(op.delete_effects),
         "policy": policy_file,
+        "horizon": skill.horizon,
     }
     if isinstance(skill.sampler, LearnedSampler):
         entry["sampler"] = f"{op.name}.sampler.npz"
@@ -264,7 +265,8 @@ def _read_skill(
         sampler = CurrentStateSampler()
     else:
         sampler = LearnedSampler.from_arrays(_npz(directory / entry["sampler"]))
-    return Skill(op, policy, sampler)
+    horizon = entry.get("horizon")
+    return Skill(op, policy, sampler, None if horizon is None else int(horizon))
 
 
 def _npz(path: Path) -> dict[str, np.ndarray]:
@@ -306,6 +308,8 @@ def describe(skills: LearnedSkills) -> str:
         extra = []
         if skill.name in counts:
             extra.append(f"{counts[skill.name]} segments")
+        if skill.horizon is not None:
+            extra.append(f"horizon {skill.horizon}")
         if isinstance(skill.sampler, CurrentStateSampler):
             extra.append("no subgoals")
         elif isinstance(skill.sampler, LearnedSampler) and skill.sampler.classifier_params is None:

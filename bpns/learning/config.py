@@ -58,6 +58,9 @@ class LearningConfig:
     generator: MLPConfig = field(default_factory=lambda: MLPConfig(num_steps=8000, batch_size=256))
     classifier: MLPConfig = field(default_factory=lambda: MLPConfig(num_steps=4000, batch_size=256))
     max_rejection_tries: int = 100
+    # A learned skill's horizon is this factor times its longest demonstrated segment
+    # (None: no skill horizon, only the planner's max_skill_horizon).
+    skill_horizon_factor: float | None = 2.0
     # Caps the wrong-binding negatives taken from one segment (chosen deterministically),
     # which keeps sampler data small in domains with many objects. None = no cap.
     max_negative_bindings_per_segment: int | None = 20
@@ -67,6 +70,8 @@ class LearningConfig:
             raise ValueError(
                 f"min_segment_fraction must be in [0, 1], got {self.min_segment_fraction}"
             )
+        if self.skill_horizon_factor is not None and not self.skill_horizon_factor > 0:
+            raise ValueError(f"skill_horizon_factor must be > 0, got {self.skill_horizon_factor}")
         if self.settle_steps < 1:
             raise ValueError(f"settle_steps must be >= 1, got {self.settle_steps}")
         if self.max_rejection_tries < 1:

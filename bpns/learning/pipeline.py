@@ -8,6 +8,7 @@ wall-clock time per stage. Same demos, predicates and config give identical weig
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Collection, Iterator, Sequence
 from contextlib import contextmanager
@@ -179,7 +180,7 @@ def learn_skills(
                 negatives = int((cls_data[:, -1] == 0).sum())
             else:
                 sampler, negatives = CurrentStateSampler(), 0
-        skills.append(Skill(dataset.operator, policy, sampler))
+        skills.append(Skill(dataset.operator, policy, sampler, _horizon(dataset, config)))
         skill_stats.append(
             SkillStats(dataset.operator.name, len(dataset), _num_samples(dataset), negatives)
         )
@@ -201,6 +202,13 @@ def _other_segments(groups: Sequence[SegmentGroup], dataset: SkillDataset) -> li
     """Every segment, dropped groups included, except ``dataset``'s own."""
     own = {id(s) for s in dataset.segments}
     return [s for g in groups for s in g.segments if id(s) not in own]
+
+
+def _horizon(dataset: SkillDataset, config: LearningConfig) -> int | None:
+    if config.skill_horizon_factor is None:
+        return None
+    longest = max(len(s.actions) for s in dataset.segments)
+    return max(1, math.ceil(config.skill_horizon_factor * longest))
 
 
 def _num_samples(dataset: SkillDataset) -> int:

@@ -190,7 +190,10 @@ class _Rollout:
         feats = self.features(state)
         unchanged = 0
         watch = self.contact_values(state) if self.contact_watch else None
-        for t in range(self.config.max_skill_horizon):
+        limit = self.config.max_skill_horizon
+        if skill.horizon is not None:
+            limit = min(limit, skill.horizon)
+        for t in range(limit):
             if deadline is not None and time.monotonic() >= deadline:
                 raise _Timeout
             if used_steps + t >= self.horizon:
