@@ -65,12 +65,16 @@ class MujocoEnv(abc.ABC):
     def goal_predicates(self) -> frozenset[Predicate]: ...
 
     @property
-    @abc.abstractmethod
-    def action_low(self) -> np.ndarray: ...
+    def action_low(self) -> np.ndarray:
+        """Default action (dx, dy, dz, grip): hand translation per control step, bounded
+        by the controller's ``max_translation``, and a finger command in [-1, 1]. Domains
+        with other actions (e.g. wrist rotations) override both bounds."""
+        m = self.controller_config.max_translation
+        return np.array([-m, -m, -m, -1.0])
 
     @property
-    @abc.abstractmethod
-    def action_high(self) -> np.ndarray: ...
+    def action_high(self) -> np.ndarray:
+        return -self.action_low
 
     @abc.abstractmethod
     def sample_layout(self, rng: np.random.Generator, train: bool) -> TaskLayout:

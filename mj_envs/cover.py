@@ -101,15 +101,6 @@ class CoverEnv(MujocoEnv):
         return frozenset({COVERS})
 
     @property
-    def action_low(self) -> np.ndarray:
-        m = self.controller_config.max_translation
-        return np.array([-m, -m, -m, -1.0])
-
-    @property
-    def action_high(self) -> np.ndarray:
-        return -self.action_low
-
-    @property
     def max_objects(self) -> dict[str, int]:
         return {"robot": 1, "block": N_BLOCKS, "target": N_TARGETS, "region": N_BLOCKS + N_TARGETS}
 

@@ -160,15 +160,6 @@ class StickButtonEnv(MujocoEnv):
         return frozenset({PRESSED})
 
     @property
-    def action_low(self) -> np.ndarray:
-        m = self.controller_config.max_translation
-        return np.array([-m, -m, -m, -1.0])
-
-    @property
-    def action_high(self) -> np.ndarray:
-        return -self.action_low
-
-    @property
     def max_objects(self) -> dict[str, int]:
         return {"robot": 1, "button": EVAL_BUTTONS[1], "stick": 1, "holder": 1}
 
