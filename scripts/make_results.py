@@ -177,11 +177,12 @@ def learning_results(args) -> list[str]:
     if not (args.reuse and demos.exists()):
         bpns("demos", "--env", "cover", "-n", str(args.demos), "--out", str(demos), *common)
     eval_args = ["-n", str(args.eval_tasks), "--timeout", f"{args.timeout:g}", *common]
-    rows, commands = [], []
+    rows, commands, learn_lines = [], [], []
     for i, n in enumerate(args.learn):
         skills = work / f"skills_{n}"
         learn = ["learn", str(demos), "--limit", str(n), "--out", str(skills), "--overwrite"]
-        bpns(*learn, "--seed", str(args.seed))
+        learned = bpns(*learn, "--seed", str(args.seed)).strip().splitlines()
+        learn_lines.append(f"- {n} demos: {learned[0].split(' -> ')[0]}")
         approaches = ["bpns", "samples1", "abstract1"] + (["oracle"] if i == 0 else [])
         ev = ["eval", "--skills", str(skills), "--approach", *approaches, "--out"]
         bpns(*ev, str(work / f"eval_{n}"), *eval_args)
@@ -222,6 +223,11 @@ def learning_results(args) -> list[str]:
         "",
         TABLE_HEADER,
         *rows,
+        "",
+        "Learning time is the pipeline itself (segment, partition, operators, networks, one "
+        "torch thread); reading the HDF5 file comes on top, as `bpns learn` reports:",
+        "",
+        *learn_lines,
         "",
         "Commands (intermediate files in " + f"`{rel(work)}`):",
         "",
