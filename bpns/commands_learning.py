@@ -165,6 +165,12 @@ def eval_args(p: argparse.ArgumentParser) -> None:
         default=300.0,
         help="seconds per task (default: the paper's 300)",
     )
+    p.add_argument(
+        "--n-abstract", type=positive, help="abstract plans to try (default: the env's or 8)"
+    )
+    p.add_argument(
+        "--n-samples", type=positive, help="samples per plan step (default: the env's or 10)"
+    )
     p.add_argument("--out", type=Path, help="output directory (results.json, results.md)")
     p.add_argument("--workers", type=positive, default=max(1, (os.cpu_count() or 1)))
     p.add_argument("--video", type=Path, help="render the first solved task to this .mp4")
@@ -174,7 +180,7 @@ def eval_args(p: argparse.ArgumentParser) -> None:
 def cmd_eval(args: argparse.Namespace) -> int:
     from bpns.approaches import APPROACHES, SkillSource
     from bpns.evaluation import EvalSpec, NoOracleSkillsError, evaluate, markdown_table
-    from bpns.planning.config import PlanningConfig
+    from bpns.planning.config import planning_config_for
 
     approaches = [APPROACHES[a] for a in dict.fromkeys(args.approach)]
     learned_needed = any(a.skills is SkillSource.LEARNED for a in approaches)
@@ -193,7 +199,12 @@ def cmd_eval(args: argparse.Namespace) -> int:
         env, "oracle_skills"
     ):
         raise UserError(f"environment {env.name!r} declares no oracle skills")
-    base = PlanningConfig(timeout=args.timeout)
+    try:
+        base = planning_config_for(
+            env, timeout=args.timeout, n_abstract=args.n_abstract, n_samples=args.n_samples
+        )
+    except (TypeError, ValueError) as err:
+        raise UserError(f"bad planning settings: {err}") from None
     reports = []
     for approach in approaches:
         learned_approach = approach.skills is SkillSource.LEARNED

@@ -125,6 +125,9 @@ class StickButtonEnv(MujocoEnv):
     """Press all buttons; those beyond the arm's reach with the tip of a held stick."""
 
     name = "stick_button"
+    # Paper appendix B: many abstract plans are not refinable here (whether a button is
+    # within reach is not in the predicates), so the planner may try up to 1000.
+    planning_defaults = {"n_abstract": 1000}
     # The hand is turned a quarter turn about the vertical (joint 7) so the fingers close
     # along y and hold the stick along +x; the workspace box reaches past the arm's own
     # limit so that reach is decided by kinematics, not by clipping.

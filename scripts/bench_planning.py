@@ -57,14 +57,14 @@ def main() -> int:
 
     from bpns.commands_learning import load_learned
     from bpns.evaluation import EvalSpec, evaluate, markdown_table
-    from bpns.planning.config import PlanningConfig
+    from bpns.planning.config import planning_config_for
 
     with tempfile.TemporaryDirectory() as tmp:
         skills_dir = args.skills or learn_from_fresh_demos(
             args.env, args.demos, args.seed, 2, Path(tmp)
         )
         env, learned = load_learned(skills_dir)
-        planning = PlanningConfig(timeout=args.timeout)
+        planning = planning_config_for(env, timeout=args.timeout)
         reports = []
         for approach in ("oracle", "bpns"):
             spec = EvalSpec(env.name, approach, planning, str(skills_dir), task_seed=args.seed)

@@ -103,3 +103,15 @@ def test_solve_task_validates_the_plan_by_resimulating_it(cover_env):
     # the actions alone (no planner state) solve the task; a truncated plan does not
     assert plan_reaches_goal(cover_env, task, outcome.actions)
     assert not plan_reaches_goal(cover_env, task, outcome.actions[:5])
+
+
+def test_environments_declare_planning_defaults_that_cli_settings_override():
+    from bpns.planning.config import planning_config_for
+
+    class Env:
+        planning_defaults = {"n_abstract": 1000}
+
+    assert planning_config_for(object()) == PlanningConfig()
+    assert planning_config_for(Env(), timeout=5.0).n_abstract == 1000
+    config = planning_config_for(Env(), n_abstract=3, n_samples=None)
+    assert config.n_abstract == 3 and config.n_samples == PlanningConfig().n_samples

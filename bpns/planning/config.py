@@ -62,3 +62,12 @@ class PlanningConfig:
             raise ValueError(f"timeout must be > 0, got {self.timeout}")
         if self.stuck_atol < 0:
             raise ValueError(f"stuck_atol must be >= 0, got {self.stuck_atol}")
+
+
+def planning_config_for(env: object, **overrides: object) -> PlanningConfig:
+    """The environment's declared planning defaults (an optional ``planning_defaults``
+    mapping of field names, e.g. the paper's N_abstract=1000 for Stick Button) with
+    ``overrides`` (those not None) on top."""
+    fields = dict(getattr(env, "planning_defaults", {}) or {})
+    fields.update({k: v for k, v in overrides.items() if v is not None})
+    return PlanningConfig(**fields)
