@@ -31,6 +31,6 @@ def test_planner_obeys_its_timeout_in_physics(cover_env):
     t0 = time.monotonic()
     result = plan(task, skills, cover_env, config, np.random.default_rng(0))
     elapsed = time.monotonic() - t0
-    assert elapsed < 2.0
+    assert elapsed < 1.0 + 1.0  # the contract: the timeout is obeyed within 1 s
     if not result.success:
         assert str(result.reason) == "timeout"

