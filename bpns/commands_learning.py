@@ -282,7 +282,7 @@ def render_first_solved(env, report, video: Path, seed: int, train: bool) -> Non
 
 # -- run --------------------------------------------------------------------------------
 def run_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--env", default="cover")
+    p.add_argument("--env", required=True, help="environment name (e.g. cover)")
     p.add_argument("--demos", type=positive, default=50, help="number of demonstrations")
     p.add_argument("--tasks", type=positive, default=10, help="number of eval tasks")
     p.add_argument("--seed", type=int, default=0)
