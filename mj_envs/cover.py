@@ -75,8 +75,13 @@ def _covers(state: State, objs: Sequence[Object]) -> bool:
 HOLDING = Predicate("Holding", (BLOCK,), _holding)
 HAND_EMPTY = Predicate("HandEmpty", (ROBOT,), _hand_empty)
 COVERS = Predicate("Covers", (BLOCK, TARGET), _covers)
-IS_BLOCK = Predicate("IsBlock", (BLOCK,), lambda s, o: True)
-IS_TARGET = Predicate("IsTarget", (TARGET,), lambda s, o: True)
+def _always(state: State, objs: Sequence[Object]) -> bool:
+    """Type predicates hold for every object of their type."""
+    return True
+
+
+IS_BLOCK = Predicate("IsBlock", (BLOCK,), _always)
+IS_TARGET = Predicate("IsTarget", (TARGET,), _always)
 
 
 class CoverEnv(MujocoEnv):

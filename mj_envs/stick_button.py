@@ -113,8 +113,17 @@ def _hand_empty(state: State, objs: Sequence[Object]) -> bool:
     return not any(state.get(s, "grasped") > 0.5 for s in state.objects_of_type(STICK))
 
 
-PRESSED = Predicate("Pressed", (BUTTON,), lambda s, o: s.get(o[0], "pressed") > 0.5)
-GRASPED = Predicate("Grasped", (ROBOT, STICK), lambda s, o: s.get(o[1], "grasped") > 0.5)
+def _pressed(state: State, objs: Sequence[Object]) -> bool:
+    return state.get(objs[0], "pressed") > 0.5
+
+
+def _grasped(state: State, objs: Sequence[Object]) -> bool:
+    return state.get(objs[1], "grasped") > 0.5
+
+
+# Classifiers are module-level functions (not lambdas) so tasks pickle to worker processes.
+PRESSED = Predicate("Pressed", (BUTTON,), _pressed)
+GRASPED = Predicate("Grasped", (ROBOT, STICK), _grasped)
 HAND_EMPTY = Predicate("HandEmpty", (ROBOT,), _hand_empty)
 ROBOT_ABOVE_BUTTON = Predicate("RobotAboveButton", (ROBOT, BUTTON), _robot_above)
 STICK_ABOVE_BUTTON = Predicate("StickAboveButton", (STICK, BUTTON), _stick_above)
