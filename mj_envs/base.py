@@ -84,8 +84,14 @@ class MujocoEnv(abc.ABC):
     def extract_features(self, world: World, objects: Sequence[Object]) -> dict[Object, np.ndarray]:
         """Read every object's feature vector from ``world.data`` (contacts are current)."""
 
-    def command(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, float]:
-        """Map an action to (dpos, world rotation vector or None, dgrip). Default (dx,dy,dz,g)."""
+    def command(
+        self, action: np.ndarray, world: World
+    ) -> tuple[np.ndarray, np.ndarray | None, float]:
+        """Map an action to (dpos, world rotation vector or None, dgrip). Default (dx,dy,dz,g).
+
+        ``world`` holds the state the action applies to (its commanded pose is in
+        ``userdata[POSE_SLICE]``), for actions relative to the hand such as wrist turns.
+        """
         return action[:3], None, float(action[3])
 
     def demonstrator(self, task: Task, rng: np.random.Generator):
@@ -162,7 +168,7 @@ class MujocoEnv(abc.ABC):
         world = state.sim.world
         assert isinstance(world, World)
         world.load(state.sim.flat)
-        dpos, drot, dgrip = self.command(action)
+        dpos, drot, dgrip = self.command(action, world)
         world.controller.apply(world.data, POSE_SLICE, dpos, drot, dgrip, self.grip_enabled(state))
         world.step_physics()
         self.after_step(world)
