@@ -18,7 +18,11 @@ from bpns.abstraction import abstract
 from bpns.structs import State, Task
 from mj_envs.base import MujocoEnv
 
-GYM_IDS = {"cover": "bpns/Cover-v0", "stick_button": "bpns/StickButton-v0"}
+GYM_IDS = {
+    "cover": "bpns/Cover-v0",
+    "stick_button": "bpns/StickButton-v0",
+    "coffee": "bpns/Coffee-v0",
+}
 
 
 class BPNSGymEnv(gym.Env):
