@@ -274,3 +274,21 @@ def test_coffee_gym_env_passes_check_env():
     obs, info = genv.reset(seed=0)
     assert genv.observation_space.contains(obs) and genv.action_space.shape == (6,)
     assert info["goal"]
+
+
+def test_oracle_skills_solve_an_eval_task_needing_a_twist_through_the_planner(env):
+    from bpns.planning.bilevel import plan
+    from mj_envs.coffee_skills import PLANNING_CONFIG
+
+    task = _task_with(
+        env, False, lambda t: len(t.goal) >= 2 and _rotation(t) > HANDLE_RULE + 0.2, seed=1
+    )
+    result = plan(task, env.oracle_skills(), env, PLANNING_CONFIG, np.random.default_rng(0))
+    assert result.success, result.reason
+    names = [op.name for op in result.skeleton.operators]
+    assert names[:2] == ["Twist", "PickPotAfterTwist"]
+    assert {"PlacePotOnPlate", "TurnOnPlate", "PourFromNothing", "PourFromOtherCup"} <= set(names)
+    state = task.init
+    for action in result.actions:  # f is exact: the returned actions solve the task
+        state = env.simulate(state, action)
+    assert task.goal <= abstract(state, env.goal_predicates)
