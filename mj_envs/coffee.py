@@ -30,7 +30,8 @@ Rules (final, as simulated):
   pours nothing (the coffee is brewed by the heat).
 * Cups are fixed to the table (they do not tip): radius 3-4.2 cm, rim 5-8 cm high; capacity
   pi r^2 h (litres), target 0.5-0.7 of the capacity. Train tasks have 1-2 cups, eval 2-3.
-  Goal: CupFilled for every cup (target <= liquid <= capacity, nothing spilled).
+  Goal: CupFilled for every cup (target <= liquid <= capacity, nothing spilled). Cups
+  stand 5 cm apart and at least 2.5 cm beyond the reach of the pot's handle.
 * Scalar state (heat, spilled, liquid per cup) lives in ``data.userdata`` after the
   controller's 7 slots and is updated in ``after_step``, so it is saved with MuJoCo's
   integration state and replay is exact.
@@ -110,6 +111,7 @@ POT_X, POT_Y = (0.38, 0.50), (-0.05, 0.06)
 PLATE_X, PLATE_Y = (0.40, 0.50), (0.23, 0.31)
 CUP_X, CUP_Y = (0.42, 0.64), (-0.40, -0.17)
 CUP_GAP = 0.05
+POT_REACH = HANDLE_INNER + HANDLE_LENGTH + 0.005  # the handle's end, from the pot's axis
 ROTATION_RANGE = np.deg2rad(120.0)
 TRAIN_CUPS, EVAL_CUPS = (1, 2), (2, 3)
 HORIZON = 1000
@@ -351,7 +353,7 @@ class CoffeeEnv(MujocoEnv):
         pot_xy = np.array([rng.uniform(*POT_X), rng.uniform(*POT_Y)])
         rotation = float(rng.uniform(-ROTATION_RANGE, ROTATION_RANGE))
         plate_xy = np.array([rng.uniform(*PLATE_X), rng.uniform(*PLATE_Y)])
-        cups = _sample_cups(rng, n)
+        cups = _sample_cups(rng, n, pot_xy)
 
         arena = make_arena("coffee", nuserdata=CUP_IDX + n)
         arena.worldbody.find("body", "workspace_focus").pos = (0.5, 0.0, 0.05)
@@ -567,8 +569,9 @@ def handle_centre(state: State, pot: Object) -> np.ndarray:
 
 
 # -- scene building ----------------------------------------------------------------------
-def _sample_cups(rng: np.random.Generator, n: int) -> list[tuple[float, ...]]:
-    """(x, y, radius, height, target fraction) per cup, spaced CUP_GAP apart."""
+def _sample_cups(rng: np.random.Generator, n: int, pot_xy: np.ndarray) -> list[tuple[float, ...]]:
+    """(x, y, radius, height, target fraction) per cup, spaced CUP_GAP apart and clear of
+    the pot's handle whichever way it is turned."""
     for _ in range(10_000):
         cups = [
             (
@@ -580,7 +583,11 @@ def _sample_cups(rng: np.random.Generator, n: int) -> list[tuple[float, ...]]:
             )
             for _ in range(n)
         ]
-        if all(
+        clear = all(
+            np.hypot(c[0] - pot_xy[0], c[1] - pot_xy[1]) >= POT_REACH + c[2] + CUP_GAP / 2
+            for c in cups
+        )
+        if clear and all(
             np.hypot(a[0] - b[0], a[1] - b[1]) >= a[2] + b[2] + CUP_GAP
             for i, a in enumerate(cups)
             for b in cups[i + 1 :]
