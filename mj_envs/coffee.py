@@ -5,10 +5,11 @@ Rules (final, as simulated):
 * The pot (100 g, free body) is a cylinder (radius 5 cm, 10 cm tall) standing on four
   small feet, with a spout at its front (+x of the pot), a lid with a square knob
   (2.6 x 2.6 x 3 cm) on top and a straight handle bar sticking out 9.4 cm at the back
-  (4 cm wide, 2.5 cm tall, 8 cm above the pot's base; a finger slot
-  between 3 mm ridges 10 cm from the pot's axis). It is moved only by the fingers'
-  contacts. Its ``rotation`` is its yaw: 0 when the handle faces the robot (points to -x);
-  tasks start with a rotation drawn uniformly in [-120, 120] deg.
+  (4 cm wide, 2.5 cm tall, 8 cm above the pot's base; a 2.9 cm finger slot between
+  3 mm ridges, centred 8.5 cm from the pot's axis, keeps the pads from sliding along
+  the bar). It is moved only by the fingers' contacts. Its ``rotation`` is its yaw: 0
+  when the handle faces the robot (points to -x); tasks start with a rotation drawn
+  uniformly in [-120, 120] deg.
 * The hand points down; the fingers close across the handle bar when the wrist is turned
   by the pot's rotation. Handle rule (explicit, checked from geometry every step): while
   the hand is within 6 cm (xy) of the handle's centre and holds nothing, the finger
@@ -81,7 +82,7 @@ KNOB_Z = POT_HEIGHT + KNOB_HALF_HEIGHT
 SPOUT_TIP = np.array([POT_RADIUS + 0.03, 0.0, 0.094])  # pot frame
 POT_MASSES = {"body": 0.075, "handle": 0.015, "knob": 0.008, "foot": 0.002}
 GRIP_FROM_AXIS = 0.085  # the handle's finger slot, from the pot's axis
-RIDGE_OFFSET, RIDGE_HALF = 0.016, 0.003  # ridges either side of the slot (along the bar)
+RIDGE_OFFSET, RIDGE_HALF = 0.0175, 0.003  # ridges either side of the slot (along the bar)
 RIDGE_PROTRUSION = 0.003
 HANDLE_RULE = np.deg2rad(60.0)
 HANDLE_NEAR = 0.06

@@ -24,8 +24,6 @@ from mj_envs.coffee import (
     CUP,
     FINGERTIP_DROP,
     GRIP_FROM_AXIS,
-    HANDLE_INNER,
-    HANDLE_LENGTH,
     HANDLE_Z,
     KNOB_HALF_HEIGHT,
     KNOB_Z,
@@ -42,7 +40,7 @@ FREE_Z = 0.22  # hand height for travel without the pot: the fingertips clear th
 GAIN, TURN_GAIN = 0.7, 0.5
 POS_TOL, ANGLE_TOL = 0.003, 0.03
 CARRY_STEP = 0.012  # metres per step, per axis, with the pot in the hand
-KNOB_GRIP_BELOW_TOP = 0.013
+KNOB_GRIP_BELOW_TOP = 0.009  # fingertips 9 mm above the lid
 TWIST_ABOVE = np.deg2rad(50.0)
 TWIST_TARGET = (np.deg2rad(5.0), np.deg2rad(30.0))  # on the side the pot is turned to
 TWIST_TOL = np.deg2rad(3.0)
@@ -147,12 +145,8 @@ def needs_twist(state: State, pot: Object) -> bool:
     return abs(state.get(pot, "rotation")) > TWIST_ABOVE
 
 
-def lateral(state: State, robot: Object, goal_xy: np.ndarray) -> float:
-    return float(np.max(np.abs(hand(state, robot)[:2] - goal_xy)))
-
-
 # -- phase builders ---------------------------------------------------------------------
-def rise_phase(robot: Object, z: float, grip: float, keep_wrist: bool = True) -> Phase:
+def rise_phase(robot: Object, z: float, grip: float) -> Phase:
     def rise(s: State) -> np.ndarray | None:
         goal = np.array([*hand(s, robot)[:2], z])
         if at(s, robot, goal, 0.01) and turned(s, robot, None):
@@ -473,11 +467,3 @@ def pour_phases(robot: Object, pot: Object, cup: Object) -> list[Phase]:
 def demonstrator(task: Task, rng: np.random.Generator) -> CoffeeDemonstrator:
     return CoffeeDemonstrator(task, rng)
 
-
-__all__ = [
-    "CoffeeDemonstrator",
-    "DemonstrationFailed",
-    "HANDLE_INNER",
-    "HANDLE_LENGTH",
-    "demonstrator",
-]
