@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import sys
@@ -171,10 +172,28 @@ def eval_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--n-samples", type=positive, help="samples per plan step (default: the env's or 10)"
     )
+    p.add_argument(
+        "--nogood-atol",
+        type=_tolerance_or_off,
+        help="tolerance (feature units) of refuted-state matching in refinement, or 'off' "
+        "for the paper's plain backtracking (default: the env's or 0.005)",
+    )
     p.add_argument("--out", type=Path, help="output directory (results.json, results.md)")
     p.add_argument("--workers", type=positive, default=max(1, (os.cpu_count() or 1)))
     p.add_argument("--video", type=Path, help="render the first solved task to this .mp4")
     p.add_argument("--no-validate", action="store_true", help="skip re-simulating plans")
+
+
+def _tolerance_or_off(text: str) -> float | str:
+    if text == "off":
+        return text
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or 'off', got {text!r}") from None
+    if not v >= 0.0:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0 or 'off', got {text!r}")
+    return v
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
@@ -201,8 +220,14 @@ def cmd_eval(args: argparse.Namespace) -> int:
         raise UserError(f"environment {env.name!r} declares no oracle skills")
     try:
         base = planning_config_for(
-            env, timeout=args.timeout, n_abstract=args.n_abstract, n_samples=args.n_samples
+            env,
+            timeout=args.timeout,
+            n_abstract=args.n_abstract,
+            n_samples=args.n_samples,
+            nogood_atol=None if args.nogood_atol == "off" else args.nogood_atol,
         )
+        if args.nogood_atol == "off":
+            base = dataclasses.replace(base, nogood_atol=None)
     except (TypeError, ValueError) as err:
         raise UserError(f"bad planning settings: {err}") from None
     reports = []

@@ -75,6 +75,8 @@ def _covers(state: State, objs: Sequence[Object]) -> bool:
 HOLDING = Predicate("Holding", (BLOCK,), _holding)
 HAND_EMPTY = Predicate("HandEmpty", (ROBOT,), _hand_empty)
 COVERS = Predicate("Covers", (BLOCK, TARGET), _covers)
+
+
 def _always(state: State, objs: Sequence[Object]) -> bool:
     """Type predicates hold for every object of their type."""
     return True

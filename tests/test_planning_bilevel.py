@@ -54,6 +54,16 @@ def test_planning_moves_on_to_the_second_abstract_plan_when_the_first_is_not_ref
     assert len(res.subgoals) == 2 and res.step_starts[0] == 0
 
 
+def test_plain_backtracking_resamples_steps_that_lead_to_a_refuted_step():
+    task = toy.make_task([2.0, 8.0])  # press the near one, then fail on the far one
+    off = plan(task, toy.skills(), ENV, PlanningConfig(nogood_atol=None), RNG(0))
+    on = plan(task, toy.skills(), ENV, PlanningConfig(), RNG(0))
+    assert off.success and on.success
+    assert "nogood" not in dict(off.stats.sample_failures)
+    assert dict(on.stats.sample_failures)["nogood"] >= 1
+    assert on.stats.sim_steps < off.stats.sim_steps
+
+
 @pytest.mark.parametrize(
     "bad",
     [

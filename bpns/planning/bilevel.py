@@ -19,6 +19,7 @@ from bpns.abstraction import abstract
 from bpns.environment import Environment
 from bpns.planning.config import PlanningConfig
 from bpns.planning.heuristics import make_heuristic
+from bpns.planning.nogoods import NogoodMemo, PrefixCache
 from bpns.planning.refinement import TIMEOUT, RefinementStats, refine
 from bpns.planning.search import STRATEGIES, AbstractPlan, SearchStats, skeletons
 from bpns.planning.strips import SearchTimeout, ground
@@ -104,6 +105,8 @@ def plan(
         finally:
             acc.search_time += time.monotonic() - t0
         acc.ground_operators = len(problem.operators)
+        memo = None if config.nogood_atol is None else NogoodMemo(config.nogood_atol)
+        prefixes = PrefixCache() if config.reuse_prefixes else None
         generator = skeletons(
             problem,
             heuristic,
@@ -131,6 +134,8 @@ def plan(
                 config,
                 rng,
                 deadline,
+                memo,
+                prefixes,
             )
             acc.refinement_time += time.monotonic() - t0
             acc.add(ref.stats)

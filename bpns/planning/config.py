@@ -28,6 +28,13 @@ class PlanningConfig:
                        features' own units; it must sit above the contact jitter of
                        a resting scene (1e-4: a tenth of a millimetre per step).
     max_plan_length:   most ground skills in one abstract plan.
+    nogood_atol:       remember refuted steps and skeleton suffixes and refute a new
+                       arrival from a state whose features all lie within this tolerance
+                       of a refuted one (see ``bpns.planning.nogoods``); None is the
+                       paper's plain chronological backtracking.
+    reuse_prefixes:    start refining a skeleton after the deepest prefix an earlier
+                       skeleton of the same call already refined (same steps, same
+                       expected abstract states) instead of simulating it again.
     end_on_contact_change: end a skill at the first change of a contact-related atom (as
                        segmentation does): success if the expected atoms hold then, else
                        an immediate sample failure instead of waiting out H_skill.
@@ -43,6 +50,8 @@ class PlanningConfig:
     stuck_atol: float = 1e-4
     max_plan_length: int = 100
     end_on_contact_change: bool = False
+    nogood_atol: float | None = 5e-3
+    reuse_prefixes: bool = True
 
     def __post_init__(self) -> None:
         if self.heuristic not in HEURISTICS:
@@ -60,6 +69,8 @@ class PlanningConfig:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         if not self.timeout > 0:
             raise ValueError(f"timeout must be > 0, got {self.timeout}")
+        if self.nogood_atol is not None and not self.nogood_atol >= 0:
+            raise ValueError(f"nogood_atol must be >= 0 or None, got {self.nogood_atol}")
         if self.stuck_atol < 0:
             raise ValueError(f"stuck_atol must be >= 0, got {self.stuck_atol}")
 

@@ -23,6 +23,7 @@ import numpy as np
 from bpns.abstraction import object_tuples
 from bpns.environment import Environment
 from bpns.planning.config import PlanningConfig
+from bpns.planning.nogoods import NogoodMemo, PrefixCache
 from bpns.planning.search import AbstractPlan
 from bpns.structs import GroundAtom, GroundOperator, Object, Skill, State, Task
 
@@ -36,6 +37,7 @@ STUCK = "stuck"
 CONTACT_CHANGED = "unexpected_contact_change"
 TASK_HORIZON = "task_horizon"
 TIMEOUT = "timeout"
+NOGOOD = "nogood"  # a fresh arrival at a step refuted by the memo (no sample drawn)
 # Why a whole refinement failed.
 EXHAUSTED = "exhausted"
 
@@ -167,8 +169,15 @@ class _Rollout:
         state: State,
         used_steps: int,
         rng: np.random.Generator,
+        refuted: list[np.ndarray] | None = None,
     ) -> _Segment | str:
-        """One sample of one step: a segment on success, else the failure reason."""
+        """One sample of one step: a segment on success, else the failure reason.
+
+        A subgoal within ``nogood_atol`` of one in ``refuted`` (subgoals that succeeded from
+        this very state but whose continuation was refuted) is not simulated again: policy
+        and physics are deterministic, so it would reach the same dead end. Subgoals that
+        failed themselves are not remembered: a learned policy's success can hinge on
+        millimetres, so a neighbour deserves its own try."""
         c = self.counters
         c.samples += 1
         objects = op.objects
@@ -178,6 +187,11 @@ class _Rollout:
             return SAMPLER_ERROR
         if not np.isfinite(subgoal).all():
             return SAMPLER_NONFINITE
+        if refuted is not None:
+            atol = self.config.nogood_atol
+            for old in refuted:
+                if old.shape == subgoal.shape and np.max(np.abs(old - subgoal), initial=0) <= atol:
+                    return NOGOOD
         must_hold = [(a.predicate.classifier, a.objects) for a in test[0]]
         must_not_hold = [(a.predicate.classifier, a.objects) for a in test[1]]
         policy = skill.policy
@@ -226,6 +240,10 @@ class _Rollout:
         return SKILL_HORIZON
 
 
+def _flat(state: State) -> np.ndarray:
+    return _Rollout.features(state)[1]
+
+
 def _complete(state: State, must_hold: list, must_not_hold: list) -> bool:
     for classifier, objs in must_hold:
         if not classifier(state, objs):
@@ -256,12 +274,17 @@ def refine(
     config: PlanningConfig,
     rng: np.random.Generator,
     deadline: float | None = None,
+    memo: NogoodMemo | None = None,
+    prefixes: PrefixCache | None = None,
 ) -> RefinementResult:
     """Backtracking search over subgoal samples for ``plan``.
 
     ``skills[i]`` is the skill whose operator ``plan.operators[i]`` grounds; its sampler
     and policy receive ``plan.operators[i].objects``. ``deadline`` is a
-    ``time.monotonic()`` value, checked before every simulation step.
+    ``time.monotonic()`` value, checked before every simulation step. ``memo`` (shared by
+    the skeletons of one ``plan`` call) refutes steps and suffixes already refuted from a
+    matching state and records new refutations (see :mod:`bpns.planning.nogoods`);
+    ``prefixes`` lets the refinement start after the deepest prefix already refined.
     """
     if len(skills) != len(plan.operators):
         raise ValueError(
@@ -274,31 +297,64 @@ def refine(
     counters = _Counters()
     roll = _Rollout(task, env, config, deadline, counters)
     n = len(plan.operators)
+    keys = [NogoodMemo.step_key(op, *t) for op, t in zip(plan.operators, tests, strict=True)]
     segments: list[_Segment | None] = [None] * n
     tries = [0] * n
+    successes = [0] * n  # successful samples since the current arrival at step i
+    horizon_hit = [False] * n  # a failure that depends on the prefix's length
+    # successful subgoals since the current arrival at step i (their continuations failed
+    # whenever refinement is back at step i)
+    refuted: list[list[np.ndarray] | None] = [[] if memo is not None else None for _ in range(n)]
     starts: list[State] = [task.init] * (n + 1)  # state at the start of step i
     used = [0] * (n + 1)  # actions taken before step i
     i = 0
+    for seg in prefixes.longest(keys) if prefixes is not None else ():
+        segments[i], tries[i], successes[i] = seg, 1, 1
+        if refuted[i] is not None:
+            refuted[i].append(seg.subgoal)
+        starts[i + 1] = seg.states[-1]
+        used[i + 1] = used[i] + len(seg.actions)
+        i += 1
     reason: str | None = None
     try:
         while i < n:
-            if tries[i] >= config.n_samples:
+            exhausted = tries[i] >= config.n_samples
+            if exhausted and memo is not None and not horizon_hit[i]:
+                memo.add(keys[i] if successes[i] == 0 else tuple(keys[i:]), _flat(starts[i]))
+            elif tries[i] == 0 and memo is not None:  # a fresh arrival at step i
+                x = _flat(starts[i])
+                if memo.refuted(keys[i], x) or memo.refuted(tuple(keys[i:]), x):
+                    counters.failures[NOGOOD] += 1
+                    exhausted = True
+            if exhausted:
+                if i > 0:  # a suffix refuted only for lack of time steps is not recorded
+                    horizon_hit[i - 1] |= horizon_hit[i]
+                tries[i], successes[i], horizon_hit[i] = 0, 0, False
+                if refuted[i] is not None:
+                    refuted[i] = []
                 if i == 0:
                     reason = EXHAUSTED
                     break
-                tries[i] = 0
                 i -= 1
                 counters.backtracks += 1
                 continue
             tries[i] += 1
-            out = roll.sample(skills[i], plan.operators[i], tests[i], starts[i], used[i], rng)
+            out = roll.sample(
+                skills[i], plan.operators[i], tests[i], starts[i], used[i], rng, refuted[i]
+            )
             if isinstance(out, str):
                 counters.failures[out] += 1
+                horizon_hit[i] |= out == TASK_HORIZON
                 continue
+            successes[i] += 1
+            if refuted[i] is not None:
+                refuted[i].append(out.subgoal)
             segments[i] = out
             starts[i + 1] = out.states[-1]
             used[i + 1] = used[i] + len(out.actions)
             i += 1
+            if prefixes is not None:
+                prefixes.add(keys[:i], segments[:i])
     except _Timeout:
         counters.failures[TIMEOUT] += 1
         reason = TIMEOUT

@@ -1,0 +1,94 @@
+r"""Refuted refinement steps, remembered across samples and skeletons of one ``plan`` call.
+
+Plain chronological backtracking (paper Alg. 1) is exponential in the depth of an
+unrefinable step: if step :math:`j` can never succeed, every one of the
+:math:`N_{samples}^{j}` sample combinations of the steps before it is tried, although
+most of them lead to practically the same state. In physical domains a refinement
+attempt costs a rollout, so this dominates planning time (Stick Button: pressing an
+out-of-reach button by hand at step 3 of a skeleton costs about a thousand rollouts).
+
+A *nogood* records that, from a low-level state :math:`x`, something failed after
+``n_samples`` samples:
+
+* a **step nogood** ``(o_i, \text{test}_i, x)``: the ground skill :math:`o_i` never reached
+  its expected abstract state from :math:`x` (no sample succeeded). It holds whatever
+  the skeleton around it, so it also prunes other skeletons that contain the step.
+* a **suffix nogood** ``((o_i, \text{test}_i), \ldots, (o_{n-1}, \text{test}_{n-1}), x)``:
+  step :math:`i` succeeded but no continuation refined the rest of the skeleton.
+
+A fresh arrival at a step from a state :math:`x'` that matches a recorded :math:`x` (every
+feature within ``atol``, in the features' own units) is refuted at once, without
+simulation. The effect is automatic backjumping: once a later step is refuted, resampling
+an earlier step that leaves the world as it was is skipped, and backtracking moves on to
+the step whose samples actually change the state (e.g. the grasp that decides a reach).
+This is a heuristic: ``n_samples`` failures from a state are taken as evidence that
+samples from a nearby state fail too. ``PlanningConfig.nogood_atol=None`` switches it off
+(the paper's plain backtracking).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable
+
+import numpy as np
+
+from bpns.structs import GroundAtom, GroundOperator
+
+StepKey = tuple[GroundOperator, frozenset[GroundAtom], frozenset[GroundAtom]]
+
+
+class NogoodMemo:
+    """Low-level states from which a step, or a skeleton suffix, was refuted."""
+
+    def __init__(self, atol: float) -> None:
+        if not atol >= 0.0:
+            raise ValueError(f"nogood atol must be >= 0, got {atol}")
+        self.atol = atol
+        self._states: dict[Hashable, list[np.ndarray]] = {}
+        self.hits = 0
+
+    @staticmethod
+    def step_key(op: GroundOperator, must_hold, must_not_hold) -> StepKey:
+        return (op, frozenset(must_hold), frozenset(must_not_hold))
+
+    def add(self, key: Hashable, features: np.ndarray) -> None:
+        self._states.setdefault(key, []).append(features)
+
+    def refuted(self, key: Hashable, features: np.ndarray) -> bool:
+        for x in self._states.get(key, ()):
+            if (
+                x.shape == features.shape
+                and float(np.max(np.abs(x - features), initial=0.0)) <= self.atol
+            ):
+                self.hits += 1
+                return True
+        return False
+
+    def __len__(self) -> int:
+        return sum(len(v) for v in self._states.values())
+
+
+class PrefixCache:
+    """The first successful refinement of every skeleton prefix, keyed by its steps.
+
+    Skeletons generated one after another share long prefixes (they differ in their last
+    steps), and the abstract states a prefix must produce are part of the key, so a new
+    skeleton can start from the deepest prefix already refined instead of simulating it
+    again. Backtracking into a reused step draws fresh samples as usual.
+    """
+
+    def __init__(self) -> None:
+        self._prefixes: dict[tuple[Hashable, ...], list] = {}
+        self.steps_reused = 0
+
+    def longest(self, keys: list[Hashable]) -> list:
+        """The cached segments of the longest refined prefix of ``keys`` (maybe empty)."""
+        for k in range(len(keys), 0, -1):
+            found = self._prefixes.get(tuple(keys[:k]))
+            if found is not None:
+                self.steps_reused += k
+                return found
+        return []
+
+    def add(self, keys: list[Hashable], segments: list) -> None:
+        self._prefixes.setdefault(tuple(keys), list(segments))
