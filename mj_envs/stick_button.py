@@ -21,7 +21,8 @@ Rules (final, as simulated):
   along +x and its tip (a point 1.5 cm behind the front end, on the bottom face) presses
   a button when lowered onto the cap. The grasp point along the free part decides how far
   the tip reaches (paper KD1). No button lies in a far button's stick lane (|dy| < 8 cm),
-  so the lowered stick never rests on another button.
+  so the lowered stick never rests on another button. No button lies within 6 cm (xy) of
+  the gripper's home position, so every task starts with AboveNoButton.
 * Pressed(button): the cap's slide joint reads a travel >= LATCH_DEPTH (joint reading).
   Grasped(robot, stick): both finger pads touch the stick (MuJoCo contact list).
   HandEmpty(robot): no stick is grasped. RobotAboveButton(robot, button): the gripper
@@ -71,6 +72,10 @@ NEAR_X, NEAR_Y, NEAR_RADIUS = (0.35, 0.62), 0.25, 0.68
 FAR_RADIUS, FAR_Y = (0.92, 1.02), 0.30
 BUTTON_SPACING = 0.09  # centre distance, housings 2 cm apart
 LANE_HALF_WIDTH = 0.08  # |dy| that keeps a button out of a far button's stick lane
+# The gripper's xy at the home pose: no button starts under the hand, so every task
+# starts in AboveNoButton (as in the paper, whose skills all start from there or from
+# a button just pressed).
+HOME_HAND_XY, HOME_CLEARANCE = (0.463, 0.0), 0.06
 TRAIN_BUTTONS, EVAL_BUTTONS = (1, 2), (3, 4)
 HORIZON = 1000
 TABLE_HALF = (0.62, 0.65, 0.025)
@@ -326,6 +331,9 @@ def _sample_buttons(rng: np.random.Generator, n: int) -> list[tuple[float, float
 
 
 def _layout_ok(pts: Sequence[tuple[float, float]], far: np.ndarray) -> bool:
+    hx, hy = HOME_HAND_XY
+    if any(np.hypot(x - hx, y - hy) < HOME_CLEARANCE for x, y in pts):
+        return False
     for i in range(len(pts)):
         for j in range(i + 1, len(pts)):
             (xi, yi), (xj, yj) = pts[i], pts[j]
