@@ -180,7 +180,12 @@ def eval_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--out", type=Path, help="output directory (results.json, results.md)")
     p.add_argument("--workers", type=positive, default=max(1, (os.cpu_count() or 1)))
-    p.add_argument("--video", type=Path, help="render the first solved task to this .mp4")
+    p.add_argument(
+        "--video",
+        type=Path,
+        help="render a solved task to this .mp4: the one with the longest plan, which shows "
+        "the most skills",
+    )
     p.add_argument("--no-validate", action="store_true", help="skip re-simulating plans")
 
 
@@ -267,7 +272,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         write_results(args.out, reports, table)
         print(f"wrote {args.out / 'results.json'} and {args.out / 'results.md'}")
     if args.video is not None:
-        render_first_solved(env, reports[0], args.video, args.seed, args.train)
+        render_longest_solved(env, reports[0], args.video, args.seed, args.train)
     return 0 if all(r.num_solved for r in reports) else 1
 
 
@@ -284,15 +289,16 @@ def write_results(out: Path, reports, table: str) -> None:
         save_plans(out / f"plans_{r.approach}.npz", r)
 
 
-def render_first_solved(env, report, video: Path, seed: int, train: bool) -> None:
-    """Re-simulate the first solved task's plan and render it (with a PNG of its end)."""
+def render_longest_solved(env, report, video: Path, seed: int, train: bool) -> None:
+    """Re-simulate the solved task with the longest abstract plan (the first of those) and
+    render it with a PNG of its end: the longest plan shows the most skills at work."""
     from bpns.commands import render_video
 
     solved = [o for o in report.outcomes if o.solved]
     if not solved:
         print(f"no {report.label} task was solved: no video", file=sys.stderr)
         return
-    outcome = solved[0]
+    outcome = max(solved, key=lambda o: len(o.skeleton))  # max keeps the first of ties
     task = env.task(outcome.index, seed, train)
     states = [task.init]
     for action in outcome.actions:
@@ -301,7 +307,7 @@ def render_first_solved(env, report, video: Path, seed: int, train: bool) -> Non
     n = render_video(env, states, video, "overview", 640, 480, png)
     print(
         f"wrote {video} ({n} frames: {report.label} solving eval task {outcome.index} in "
-        f"{len(outcome.actions)} steps) and {png}"
+        f"{len(outcome.actions)} steps) and {png}\n  plan: " + ", ".join(outcome.skeleton)
     )
 
 

@@ -64,6 +64,7 @@ class TaskOutcome:
     samples: int
     sim_steps: int
     validated: bool | None  # None when validation was off or the task unsolved
+    skeleton: tuple[str, ...] = ()  # the abstract plan refined, one ground skill a step
     actions: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
 
     def to_json(self) -> dict[str, Any]:
@@ -219,6 +220,7 @@ def solve_task(
         samples=s.samples_drawn,
         sim_steps=s.sim_steps,
         validated=validated,
+        skeleton=tuple(str(op) for op in result.skeleton.operators) if result.success else (),
         actions=result.actions,
     )
 

@@ -57,6 +57,10 @@ def test_skills_learned_from_a_dozen_demos_solve_eval_tasks(run_dir):
     assert bpns["summary"]["num_solved"] >= 2
     assert all(t["validated"] for t in bpns["tasks"] if t["solved"])
     assert oracle["summary"]["num_solved"] == 3
+    # each solved task names the abstract plan it refined (Pick then Place per block)
+    for t in bpns["tasks"]:
+        assert bool(t["skeleton"]) == t["solved"]
+        assert len(t["skeleton"]) % 2 == 0
 
 
 def test_learned_cover_operators_are_pick_and_place_and_the_pddl_parses(run_dir, capsys):
