@@ -215,6 +215,14 @@ def test_train_tasks_have_one_or_two_buttons_and_eval_tasks_three_or_four(env):
     assert env.contact_predicates == {GRASPED, PRESSED}
 
 
+def test_every_task_starts_with_the_hand_above_no_button(env):
+    """No button is sampled under the home gripper (the learned skills start from there)."""
+    for train in (True, False):
+        for i in range(40):
+            atoms = abstract(env.task(i, 0, train).init, env.predicates)
+            assert any(a.predicate.name == "AboveNoButton" for a in atoms), (train, i)
+
+
 @pytest.fixture(scope="module")
 def demos(env):
     tasks = [
