@@ -43,8 +43,16 @@ bench: $(STAMP)
 	$(PY) scripts/bench_control.py
 	$(PY) scripts/bench_planning.py --env cover --demos 100 -n 20
 
+# Each environment's section of docs/RESULTS.md; `make results ENVS=stick_button` for one.
+ENVS ?= cover stick_button coffee
 results: $(STAMP)
-	$(PY) scripts/make_results.py
+	@for e in $(ENVS); do \
+	  case $$e in \
+	    cover) extra="--learn 100 1000 --ablations --bench";; \
+	    *) extra="--learn 250 1000";; \
+	  esac; \
+	  $(PY) scripts/make_results.py --env $$e $$extra || exit 1; \
+	done
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check bpns ik mj_envs scripts tests

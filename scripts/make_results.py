@@ -1,16 +1,19 @@
-"""Measure what docs/RESULTS.md reports and rewrite it. Anyone can rerun:
+"""Measure one environment's section of docs/RESULTS.md and rebuild the file. Rerun:
 
-    python scripts/make_results.py [--tasks 200] [--replay 50] [--workers 2]
-                                   [--demos 1000] [--learn 100 1000] [--eval-tasks 50]
+    python scripts/make_results.py --env cover [--tasks 200] [--replay 50] [--workers 2]
+        [--demos 1000] [--learn 100 1000] [--eval-tasks 50] [--ablations] [--bench]
 
-Sections: the scripted Cover oracle's success in physics on train and eval tasks; exact
-replay of saved demonstrations (max |state diff|); the control-step benchmark
+A section (``docs/results/<env>.md``, carrying the command that made it) holds: the
+scripted demonstrator's success in physics on train and eval tasks; exact replay of saved
+demonstrations (max |state diff|); with ``--bench`` the control-step benchmark
 (scripts/bench_control.py, ratios against raw MuJoCo and raw mink in the same run);
-BPNS learned from the first N of ``--demos`` demonstrations for each N in ``--learn``,
-with its ablations and the oracle skills, on the same eval tasks, through the CLI
-(`bpns demos/learn/eval`), and the planning benchmark (scripts/bench_planning.py).
-Intermediate files go to ``--work`` (default outputs/results); ``--reuse`` keeps
-demonstrations already there.
+BPNS learned from the first N of ``--demos`` demonstrations for each N in ``--learn``
+(with ``--ablations`` also Samples=1 and AbstractPlans=1) and the oracle skills, on the
+same eval tasks, through the CLI (`bpns demos/learn/eval`); with ``--bench`` the planning
+benchmark (scripts/bench_planning.py). ``--learn`` with no N evaluates the oracle skills
+only. docs/RESULTS.md is then rebuilt from every section present, so domains are
+measured independently. Intermediate files go to ``--work`` (default
+outputs/results/<env>); ``--reuse`` keeps demonstrations already there.
 """
 
 from __future__ import annotations
@@ -58,30 +61,118 @@ def replay_check(env_name: str, n: int, seed: int, workers: int) -> dict:
     }
 
 
+SECTIONS = ROOT / "docs" / "results"
+ORDER = ("cover", "stick_button", "coffee", "doors")  # the paper's order; others follow
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--env", default="cover")
     parser.add_argument("--tasks", type=int, default=200)
     parser.add_argument("--replay", type=int, default=50)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "RESULTS.md")
     parser.add_argument("--demos", type=int, default=1000)
-    parser.add_argument("--learn", type=int, nargs="+", default=[100, 1000])
+    parser.add_argument("--learn", type=int, nargs="*", default=[100, 1000])
     parser.add_argument("--eval-tasks", type=int, default=50)
     parser.add_argument("--timeout", type=float, default=60.0)
-    parser.add_argument("--work", type=Path, default=ROOT / "outputs" / "results")
+    parser.add_argument("--ablations", action="store_true", help="also Samples=1, AbstractPlans=1")
+    parser.add_argument("--bench", action="store_true", help="also the two benchmarks")
+    parser.add_argument("--work", type=Path, help="default: outputs/results/<env>")
     parser.add_argument("--reuse", action="store_true", help="reuse --work/demos.h5")
     args = parser.parse_args()
+    args.work = args.work or ROOT / "outputs" / "results" / args.env
 
     import mj_envs  # noqa: F401
+    from bpns.registry import make_environment
 
+    title = make_environment(args.env).__class__.__doc__ or ""
+    name = args.env.replace("_", " ").title()
     rows = []
     for train in (True, False):
-        ok, dt = oracle_rate("cover", args.tasks, args.seed, train, args.workers)
+        ok, dt = oracle_rate(args.env, args.tasks, args.seed, train, args.workers)
         rows.append((("train" if train else "eval"), ok, args.tasks, dt))
-        print(f"oracle cover {rows[-1][0]}: {ok}/{args.tasks} in {dt:.0f} s", flush=True)
-    rep = replay_check("cover", args.replay, args.seed + 1, args.workers)
+        print(f"oracle {args.env} {rows[-1][0]}: {ok}/{args.tasks} in {dt:.0f} s", flush=True)
+    rep = replay_check(args.env, args.replay, args.seed + 1, args.workers)
     print(f"replay: {rep}", flush=True)
+
+    cmd = " ".join(
+        [
+            f"python scripts/make_results.py --env {args.env}",
+            f"--tasks {args.tasks}",
+            f"--replay {args.replay}",
+            f"--workers {args.workers}",
+            f"--demos {args.demos}",
+            f"--learn {' '.join(map(str, args.learn))}".rstrip(),
+            f"--eval-tasks {args.eval_tasks}",
+            f"--timeout {args.timeout:g}",
+            *(["--ablations"] if args.ablations else []),
+            *(["--bench"] if args.bench else []),
+        ]
+    )
+    lines = [
+        f"## {name}",
+        "",
+        f"_{title.strip().splitlines()[0] if title.strip() else name}_",
+        "",
+        f"Produced by `{cmd}` on {platform.node() or 'this machine'}: "
+        f"{platform.processor() or platform.machine()}, Python {platform.python_version()}, "
+        f"{time.strftime('%Y-%m-%d')}. Every number in this section was measured by that "
+        "command; rerun it to check.",
+        "",
+        f"### {name}: scripted oracle demonstrator in physics",
+        "",
+        "| tasks | solved | rate | wall time |",
+        "|---|---|---|---|",
+        *[
+            f"| {kind} (seed {args.seed}) | {ok}/{n} | {100 * ok / n:.1f} % | {dt:.0f} s "
+            f"({args.workers} workers) |"
+            for kind, ok, n, dt in rows
+        ],
+        "",
+        f"### {name}: exact replay of saved demonstrations",
+        "",
+        f"{rep['demos']} demonstrations ({rep['steps']} control steps) written to HDF5, "
+        "loaded back and re-simulated from their first state:",
+        "",
+        f"- max |flat simulator state difference| = {rep['max_state_diff']:g}",
+        f"- max |feature difference| = {rep['max_feature_diff']:g}",
+        f"- goal reached on replay: {rep['goal_reached']}/{rep['demos']}",
+        "",
+    ]
+    if args.bench:
+        lines += control_bench()
+    lines += learning_results(args, name)
+    SECTIONS.mkdir(parents=True, exist_ok=True)
+    atomic_write(SECTIONS / f"{args.env}.md", "\n".join(lines))
+    assemble(args.out)
+    print(f"wrote {SECTIONS / f'{args.env}.md'} and {args.out}")
+
+
+def atomic_write(path: Path, text: str) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
+def assemble(out: Path) -> None:
+    """docs/RESULTS.md = a short preface + every environment's section, in paper order."""
+    found = {p.stem: p for p in SECTIONS.glob("*.md")}
+    names = [n for n in ORDER if n in found] + sorted(set(found) - set(ORDER))
+    preface = [
+        "# Measured results",
+        "",
+        "Each environment's section is measured by the command at its top (one run of "
+        "`scripts/make_results.py --env NAME`), is kept in `docs/results/NAME.md` and is "
+        "copied here; `make results` reruns them all.",
+        "",
+    ]
+    body = [found[n].read_text().rstrip() + "\n" for n in names]
+    atomic_write(out, "\n".join(preface) + "\n" + "\n".join(body))
+
+
+def control_bench() -> list[str]:
     bench = json.loads(
         subprocess.run(
             [sys.executable, str(ROOT / "scripts" / "bench_control.py"), "--json"],
@@ -93,48 +184,8 @@ def main() -> None:
         .splitlines()[-1]
     )
     print(f"bench: {bench}", flush=True)
-
-    learning = learning_results(args)
-
-    cmd = " ".join(
-        [
-            "python scripts/make_results.py",
-            f"--tasks {args.tasks}",
-            f"--replay {args.replay}",
-            f"--workers {args.workers}",
-            f"--demos {args.demos}",
-            f"--learn {' '.join(map(str, args.learn))}",
-            f"--eval-tasks {args.eval_tasks}",
-        ]
-    )
-    lines = [
-        "# Measured results",
-        "",
-        f"Produced by `{cmd}` (also `make results`) on {platform.node() or 'this machine'}: "
-        f"{platform.processor() or platform.machine()}, Python {platform.python_version()}, "
-        f"{time.strftime('%Y-%m-%d')}. Every number below was measured by that command; "
-        "rerun it to check.",
-        "",
-        "## Cover: scripted oracle demonstrator in physics",
-        "",
-        "| tasks | solved | rate | wall time |",
-        "|---|---|---|---|",
-        *[
-            f"| {name} (seed {args.seed}) | {ok}/{n} | {100 * ok / n:.1f} % | {dt:.0f} s "
-            f"({args.workers} workers) |"
-            for name, ok, n, dt in rows
-        ],
-        "",
-        "## Exact replay of saved demonstrations",
-        "",
-        f"{rep['demos']} Cover demonstrations ({rep['steps']} control steps) written to HDF5, "
-        "loaded back and re-simulated from their first state:",
-        "",
-        f"- max |flat simulator state difference| = {rep['max_state_diff']:g}",
-        f"- max |feature difference| = {rep['max_feature_diff']:g}",
-        f"- goal reached on replay: {rep['goal_reached']}/{rep['demos']}",
-        "",
-        "## One control step vs. raw MuJoCo and raw mink (`scripts/bench_control.py`)",
+    return [
+        "### One control step vs. raw MuJoCo and raw mink (`scripts/bench_control.py`)",
         "",
         f"Median over 2000 steps; {bench['substeps']} physics substeps per 0.05 s control step.",
         "",
@@ -149,13 +200,7 @@ def main() -> None:
         f"Ratio control step / (raw QP + raw substeps) = **{bench['ratio_control_step']}** "
         f"(target ≤ 1.5); full transition ratio = {bench['ratio_simulate']}.",
         "",
-        *learning,
     ]
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = args.out.with_suffix(".tmp")
-    tmp.write_text("\n".join(lines))
-    tmp.replace(args.out)
-    print(f"wrote {args.out}")
 
 
 def bpns(*argv: str) -> str:
@@ -167,55 +212,48 @@ def bpns(*argv: str) -> str:
     return proc.stdout
 
 
-def learning_results(args) -> list[str]:
+def learning_results(args, name: str) -> list[str]:
     from bpns.evaluation import TABLE_HEADER
 
     work = args.work
     work.mkdir(parents=True, exist_ok=True)
     demos = work / "demos.h5"
     common = ["--seed", str(args.seed), "--workers", str(args.workers)]
-    if not (args.reuse and demos.exists()):
-        bpns("demos", "--env", "cover", "-n", str(args.demos), "--out", str(demos), *common)
     eval_args = ["-n", str(args.eval_tasks), "--timeout", f"{args.timeout:g}", *common]
     rows, commands, learn_lines = [], [], []
+    if not args.learn:  # the oracle skills alone
+        ev = ["eval", "--env", args.env, "--approach", "oracle", "--out"]
+        bpns(*ev, str(work / "eval_oracle"), *eval_args)
+        commands.append(f"bpns {' '.join(ev)} {work}/eval_oracle ...")
+        rows += (work / "eval_oracle" / "results.md").read_text().strip().splitlines()[2:]
+    elif not (args.reuse and demos.exists()):
+        bpns("demos", "--env", args.env, "-n", str(args.demos), "--out", str(demos), *common)
     for i, n in enumerate(args.learn):
         skills = work / f"skills_{n}"
         learn = ["learn", str(demos), "--limit", str(n), "--out", str(skills), "--overwrite"]
         learned = bpns(*learn, "--seed", str(args.seed)).strip().splitlines()
         learn_lines.append(f"- {n} demos: {learned[0].split(' -> ')[0]}")
-        approaches = ["bpns", "samples1", "abstract1"] + (["oracle"] if i == 0 else [])
+        approaches = ["bpns"] + (["samples1", "abstract1"] if args.ablations else [])
+        approaches += ["oracle"] if i == 0 else []
         ev = ["eval", "--skills", str(skills), "--approach", *approaches, "--out"]
         bpns(*ev, str(work / f"eval_{n}"), *eval_args)
         commands += [f"bpns {' '.join(learn)}", f"bpns {' '.join(ev)} {work}/eval_{n} ..."]
         reports = json.loads((work / f"eval_{n}" / "results.json").read_text())
-        table = (work / f"eval_{n}" / "results.md").read_text().strip().splitlines()[2:]
-        rows += table
+        rows += (work / f"eval_{n}" / "results.md").read_text().strip().splitlines()[2:]
         for r in reports:
             print(f"{r['label']} {n}: {r['summary']}", flush=True)
-    bench = subprocess.run(
-        [
-            sys.executable,
-            str(ROOT / "scripts" / "bench_planning.py"),
-            "--skills",
-            str(work / f"skills_{args.learn[-1]}"),
-            "-n",
-            str(args.eval_tasks),
-            "--timeout",
-            f"{args.timeout:g}",
-        ],
-        check=True,
-        capture_output=True,
-        text=True,
-    ).stdout.strip()
-    print(bench, flush=True)
     rel = lambda p: str(p.relative_to(ROOT)) if p.is_relative_to(ROOT) else str(p)  # noqa: E731
-    return [
-        "## Cover: BPNS learned from demonstrations, solving held-out tasks",
+    lines = [
+        f"### {name}: solving held-out tasks by bilevel planning",
         "",
-        f"Demonstrations: `bpns demos --env cover -n {args.demos} --seed {args.seed}` "
-        f"(tasks the scripted demonstrator failed are left out). Skills learned from the "
-        f"first N of them with `bpns learn --limit N`; each approach then planned the same "
-        f"{args.eval_tasks} seeded eval tasks (`bpns eval -n {args.eval_tasks} --seed "
+        (
+            f"Demonstrations: `bpns demos --env {args.env} -n {args.demos} --seed {args.seed}` "
+            "(tasks the scripted demonstrator failed are left out). Skills learned from the "
+            "first N of them with `bpns learn --limit N`; each approach then planned the same "
+            if args.learn
+            else "The environment's hand-written skills planned "
+        )
+        + f"{args.eval_tasks} seeded eval tasks (`bpns eval -n {args.eval_tasks} --seed "
         f"{args.seed} --timeout {args.timeout:g} --workers {args.workers}`). Times are wall "
         "clock per task over solved tasks, measured inside the worker that planned it "
         f"({args.workers} tasks at a time on this machine); nodes created are means over "
@@ -224,22 +262,47 @@ def learning_results(args) -> list[str]:
         TABLE_HEADER,
         *rows,
         "",
-        "Learning time is the pipeline itself (segment, partition, operators, networks, one "
-        "torch thread); reading the HDF5 file comes on top, as `bpns learn` reports:",
-        "",
-        *learn_lines,
-        "",
+    ]
+    if learn_lines:
+        lines += [
+            "Learning time is the pipeline itself (segment, partition, operators, networks, "
+            "one torch thread); reading the HDF5 file comes on top, as `bpns learn` reports:",
+            "",
+            *learn_lines,
+            "",
+        ]
+    lines += [
         "Commands (intermediate files in " + f"`{rel(work)}`):",
         "",
         *[f"    {c.replace(str(ROOT) + '/', '')}" for c in commands],
         "",
-        "## Planning time: BPNS vs oracle skills (`scripts/bench_planning.py`)",
-        "",
-        "Both approaches plan the same eval tasks one at a time, in one run:",
-        "",
-        *[f"    {line}" for line in bench.splitlines()],
-        "",
     ]
+    if args.bench and args.learn:
+        bench = subprocess.run(
+            [
+                sys.executable,
+                str(ROOT / "scripts" / "bench_planning.py"),
+                "--skills",
+                str(work / f"skills_{args.learn[-1]}"),
+                "-n",
+                str(args.eval_tasks),
+                "--timeout",
+                f"{args.timeout:g}",
+            ],
+            check=True,
+            capture_output=True,
+            text=True,
+        ).stdout.strip()
+        print(bench, flush=True)
+        lines += [
+            "### Planning time: BPNS vs oracle skills (`scripts/bench_planning.py`)",
+            "",
+            "Both approaches plan the same eval tasks one at a time, in one run:",
+            "",
+            *[f"    {line}" for line in bench.splitlines()],
+            "",
+        ]
+    return lines
 
 
 if __name__ == "__main__":
