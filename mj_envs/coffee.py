@@ -20,8 +20,8 @@ Rules (final, as simulated):
 * The hot plate (radius 9 cm, top 2 cm above the table) has an on-button 14 cm in front
   of it (+x), a latching push button as in Stick Button (cap 4.4 cm wide, top 4.5 cm
   above the table, latches at 8 mm of travel through an equality constraint saved in
-  ``eq_active``). The pot heats while its feet touch the plate's top and the button is
-  latched: heat += 0.05 per 0.05 s step, capped at 1; PotHot when heat >= 1. The heat
+  ``eq_active``). The pot heats while it stands on the plate (PotOnPlate) and the button
+  is latched: heat += 0.05 per 0.05 s step, capped at 1; PotHot when heat >= 1. The heat
   never drops.
 * Liquid (scalar flow model): while the pot is hot and tilted more than 0.5 rad (its
   axis from the vertical, spout down), 0.006 l flows per step from the spout tip. If the
@@ -39,8 +39,11 @@ Rules (final, as simulated):
 * Predicates: Holding(robot, pot) = both finger pads touch the handle (bar or its finger-slot
   ridges; contact list);
   Twisting(robot, pot) = both pads touch the knob; HandEmpty(robot) = neither;
-  OnTable(pot) = a foot touches the table; PotOnPlate(pot, plate) = a foot touches the
-  plate's top; ButtonPressed(plate) = the button's slide joint reads >= 8 mm; PotHot(pot);
+  OnTable(pot) = the pot stands upright on the table (its base less than 5 mm above the
+  table top, tilted less than 0.3 rad: the closing fingers may lift it a millimetre or
+  two without it counting as picked up); PotOnPlate(pot, plate) = likewise on the plate
+  (base within 5 mm of its top, feet over it); ButtonPressed(plate) = the button's slide
+  joint reads >= 8 mm; PotHot(pot);
   PressingButton(robot, plate) = the closed fingertips are on the cap (hand within 2.5 cm
   of its axis in xy and fingertips < 1 cm above its top); PotAboveCup(pot, cup) = the spout
   tip is over the cup's opening and above its rim; RobotAboveCup(robot, cup) = the robot
@@ -85,6 +88,7 @@ GRIP_FROM_AXIS = 0.085  # the handle's finger slot, from the pot's axis
 RIDGE_OFFSET, RIDGE_HALF = 0.0175, 0.003  # ridges either side of the slot (along the bar)
 RIDGE_PROTRUSION = 0.003
 HANDLE_RULE = np.deg2rad(60.0)
+STANDING_HEIGHT, STANDING_TILT = 0.005, 0.3  # OnTable
 HANDLE_NEAR = 0.06
 # -- plate and button --------------------------------------------------------------------
 PLATE_RADIUS, PLATE_TOP = 0.09, 0.02
@@ -382,8 +386,7 @@ class CoffeeEnv(MujocoEnv):
         d = world.data
         if d.eq_active[ids["latch_eq"]] == 0 and d.qpos[ids["cap_qpos"]] >= LATCH_DEPTH:
             d.eq_active[ids["latch_eq"]] = 1
-        contacts = self._contacts(world, ids)
-        if d.eq_active[ids["latch_eq"]] and contacts["on_plate"]:
+        if d.eq_active[ids["latch_eq"]] and self._stands_on_plate(world, ids):
             d.userdata[HEAT_IDX] = min(1.0, d.userdata[HEAT_IDX] + HEAT_RATE)
         if d.userdata[HEAT_IDX] < 1.0:
             return
@@ -439,9 +442,6 @@ class CoffeeEnv(MujocoEnv):
                 | {m.geom(f"pot_ridge{i}").id for i in range(4)},
                 "knob": m.geom("pot_knob").id,
                 "lid": m.geom("pot_lid").id,
-                "feet": {m.geom(f"pot_foot{i}").id for i in range(4)},
-                "table": m.geom("table").id,
-                "plate_geom": m.geom("plate_geom").id,
                 "plate_top": m.geom("plate_top").id,
                 "plate": m.body("plate").id,
                 "cap_geom": m.geom("button_cap_geom").id,
@@ -461,15 +461,24 @@ class CoffeeEnv(MujocoEnv):
         return ids
 
     @staticmethod
+    def _stands_on_plate(world: World, ids: dict) -> bool:
+        """The pot stands upright on the plate: base < 5 mm above its top, feet over it."""
+        d = world.data
+        pos = d.xpos[ids["pot"]]
+        plate = d.xpos[ids["plate"]]
+        upright = d.xmat[ids["pot"]][8] > np.cos(STANDING_TILT)
+        over = np.hypot(pos[0] - plate[0], pos[1] - plate[1]) < PLATE_RADIUS - FOOT_OFFSET
+        return bool(upright and over and -0.002 < pos[2] - PLATE_TOP < STANDING_HEIGHT)
+
+    @staticmethod
     def _contacts(world: World, ids: dict) -> dict[str, bool]:
         """Contact facts from MuJoCo's contact list (distance <= 0)."""
         d = world.data
         n = d.ncon
         left, right = ids["pads"]
-        feet, handle, knob = ids["feet"], ids["handle"], ids["knob"]
+        handle, knob = ids["handle"], ids["knob"]
         on_handle: set[int] = set()
         on_knob: set[int] = set()
-        on_table = on_plate = False
         if n:
             for (a, b), dist in zip(d.contact.geom[:n], d.contact.dist[:n], strict=True):
                 if dist > 0.0:
@@ -480,16 +489,9 @@ class CoffeeEnv(MujocoEnv):
                             on_handle.add(p)
                         elif o == knob:
                             on_knob.add(p)
-                    elif p in feet:
-                        if o == ids["table"]:
-                            on_table = True
-                        elif o == ids["plate_geom"]:
-                            on_plate = True
         return {
             "held": len(on_handle) == 2,
             "twisted": len(on_knob) == 2,
-            "on_table": on_table,
-            "on_plate": on_plate,
         }
 
     def extract_features(self, world: World, objects: Sequence[Object]) -> dict[Object, np.ndarray]:
@@ -520,8 +522,8 @@ class CoffeeEnv(MujocoEnv):
                         *tip,
                         float(contacts["held"]),
                         float(contacts["twisted"]),
-                        float(contacts["on_table"]),
-                        float(contacts["on_plate"]),
+                        float(pos[2] < STANDING_HEIGHT and tilt < STANDING_TILT),
+                        float(self._stands_on_plate(world, ids)),
                         d.userdata[HEAT_IDX],
                         d.userdata[SPILL_IDX],
                     ]

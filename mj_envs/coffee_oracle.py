@@ -40,10 +40,12 @@ FREE_Z = 0.22  # hand height for travel without the pot: the fingertips clear th
 GAIN, TURN_GAIN = 0.7, 0.5
 POS_TOL, ANGLE_TOL = 0.003, 0.03
 CARRY_STEP = 0.012  # metres per step, per axis, with the pot in the hand
+SUPPORT_SNAP = 0.01
 KNOB_GRIP_BELOW_TOP = 0.009  # fingertips 9 mm above the lid
 TWIST_ABOVE = np.deg2rad(50.0)
 TWIST_TARGET = (np.deg2rad(5.0), np.deg2rad(30.0))  # on the side the pot is turned to
 TWIST_TOL = np.deg2rad(3.0)
+TWIST_TURN, MAX_KNOB_MISSES = 0.07, 5  # rad per step turning the knob
 APPROACH_CLEARANCE, PRESS_SPEED = 0.008, 0.003
 SLOW_ZONE, SLOW_STEP = 0.05, 0.006
 BACK_OFF = 0.04  # after letting go, rise this far at SLOW_STEP
@@ -112,15 +114,25 @@ def pot_xy(state: State, pot: Object) -> np.ndarray:
     return np.array([state.get(pot, "x"), state.get(pot, "y")])
 
 
+def base_z(state: State, pot: Object) -> float:
+    """Height of the pot's base, snapped to its support (table or plate) within 1 cm: a
+    hand aiming at the measured height would chase a pot its fingers lift a little."""
+    z = state.get(pot, "z")
+    for support in (0.0, PLATE_TOP):
+        if abs(z - support) < SUPPORT_SNAP:
+            return support
+    return z
+
+
 def handle_grasp(state: State, pot: Object, along: float = GRIP_FROM_AXIS) -> np.ndarray:
     """Hand position that grasps the handle ``along`` metres from the pot's axis."""
     rot = state.get(pot, "rotation")
     xy = pot_xy(state, pot) - along * np.array([np.cos(rot), np.sin(rot)])
-    return np.array([*xy, state.get(pot, "z") + HANDLE_Z])
+    return np.array([*xy, base_z(state, pot) + HANDLE_Z])
 
 
 def knob_grasp(state: State, pot: Object) -> np.ndarray:
-    z = state.get(pot, "z") + KNOB_Z + KNOB_HALF_HEIGHT - KNOB_GRIP_BELOW_TOP
+    z = base_z(state, pot) + KNOB_Z + KNOB_HALF_HEIGHT - KNOB_GRIP_BELOW_TOP
     return np.array([*pot_xy(state, pot), z])
 
 
@@ -189,7 +201,10 @@ def grasp_phases(
             closing["extra"] += 1
             if closing["extra"] > EXTRA_CLOSE_STEPS:
                 return None
-        return move_action(s, robot, target(s), -1.0, wrist=wrist(s))
+        action = move_action(s, robot, target(s), -1.0, wrist=wrist(s))
+        if closing["extra"]:
+            action[2] = 0.0  # once held, no lifting before the lift phase
+        return action
 
     return [travel, descend, close]
 
@@ -289,14 +304,19 @@ def twist_phases(robot: Object, pot: Object, target: float) -> list[Phase]:
     phases = [rise_phase(robot, FREE_Z, 1.0)]
     phases += grasp_phases(robot, pot, lambda s: knob_grasp(s, pot), grasp_wrist, "twisted")
 
+    misses = {"n": 0}
+
     def turn(s: State) -> np.ndarray | None:
-        if s.get(pot, "twisted") < 0.5:
-            raise DemonstrationFailed("lost the knob while twisting")
+        action = move_action(s, robot, knob_grasp(s, pot), -1.0)
+        if s.get(pot, "twisted") < 0.5:  # a pad slipped off a face for a moment: squeeze
+            misses["n"] += 1
+            if misses["n"] > MAX_KNOB_MISSES:
+                raise DemonstrationFailed("lost the knob while twisting")
+            return action
         err = wrap(target - s.get(pot, "rotation"))
         if abs(err) <= TWIST_TOL:
             return None
-        action = move_action(s, robot, knob_grasp(s, pot), -1.0)
-        action[4] = TURN_GAIN * err
+        action[4] = float(np.clip(TURN_GAIN * err, -TWIST_TURN, TWIST_TURN))
         return action
 
     return phases + [turn] + release_phases(robot, pot, "twisted", FREE_Z)

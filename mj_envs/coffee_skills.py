@@ -67,6 +67,7 @@ from mj_envs.coffee_oracle import (
     TURN_GAIN,
     TWIST_TARGET,
     TWIST_TOL,
+    TWIST_TURN,
     UNTILT_TURN,
     hand,
     handle_grasp,
@@ -273,7 +274,7 @@ class PickPotAfterTwistPolicy:
             if abs(err) <= TWIST_TOL:
                 return _open_in_place()
             action = move_action(state, robot, knob_grasp(state, pot), -1.0)
-            action[4] = TURN_GAIN * err
+            action[4] = float(np.clip(TURN_GAIN * err, -TWIST_TURN, TWIST_TURN))
             return action
         return _pick_handle(state, robot, pot, np.zeros(2))
 
