@@ -95,6 +95,34 @@ def test_stuck_detection_fails_a_sample_quickly():
     assert res.stats.sim_steps == 10 + 4
 
 
+def test_a_policy_chattering_in_place_counts_as_stuck():
+    """Period-2 chatter below stuck_atol (an arm at its reach limit) goes nowhere."""
+    task = toy.make_task([4.0])
+    flip = {"sign": 1.0}
+
+    def chatter(state, objs, subgoal):
+        flip["sign"] *= -1.0
+        return np.array([flip["sign"] * 1e-3, 0.0])  # +-0.5 mm a step
+
+    skills = toy.skills(press_direct_policy_fn=chatter)
+    cfg = PlanningConfig(n_samples=1, stuck_steps=4, stuck_atol=1e-3, max_skill_horizon=1000)
+    res = run(task, [(toy.PRESS_DIRECT, ("robot", "button0"))], skills, cfg)
+    assert res.stats.failures("stuck") == 1 and res.stats.sim_steps == 4
+
+
+def test_a_slow_but_steady_policy_is_not_stuck():
+    """0.6 mm a step is below stuck_atol, but it gets somewhere: only the horizon ends it."""
+    task = toy.make_task([4.0])
+
+    def creep(state, objs, subgoal):
+        return np.array([1.2e-3, 0.0])
+
+    skills = toy.skills(press_direct_policy_fn=creep)
+    cfg = PlanningConfig(n_samples=1, stuck_steps=4, stuck_atol=1e-3, max_skill_horizon=30)
+    res = run(task, [(toy.PRESS_DIRECT, ("robot", "button0"))], skills, cfg)
+    assert res.stats.failures("skill_horizon") == 1 and res.stats.failures("stuck") == 0
+
+
 def test_skill_horizon_fails_a_sample():
     task = toy.make_task([4.0])
     res = run(

@@ -22,11 +22,12 @@ class PlanningConfig:
     heuristic:         delete-relaxation heuristic guiding the abstract search.
     search:            "astar" (g+h), "gbfs" (h) or "ucs" (g, heuristic unused).
     max_skill_horizon: H_skill, most actions one skill may take for one subgoal.
-    stuck_steps:       a rollout fails after this many consecutive steps in which no
-                       feature moved by more than ``stuck_atol`` (saves waiting out H_skill).
-    stuck_atol:        absolute tolerance of the "state stopped changing" test, in the
-                       features' own units; it must sit above the contact jitter of
-                       a resting scene (1e-4: a tenth of a millimetre per step).
+    stuck_steps:       a rollout fails after this many consecutive steps in which every
+                       feature stayed within ``stuck_atol`` of where it stood when the
+                       world last stopped moving (saves waiting out H_skill).
+    stuck_atol:        absolute tolerance of the "going nowhere" test, in the features'
+                       own units: above the contact jitter of a resting scene and the
+                       chatter of an arm held at its reach limit (0.6 mm per step).
     max_plan_length:   most ground skills in one abstract plan.
     nogood_atol:       remember refuted steps and skeleton suffixes and refute a new
                        arrival from a state whose features all lie within this tolerance
@@ -47,7 +48,7 @@ class PlanningConfig:
     search: str = "astar"
     max_skill_horizon: int = 200
     stuck_steps: int = 10
-    stuck_atol: float = 1e-4
+    stuck_atol: float = 1e-3
     max_plan_length: int = 100
     end_on_contact_change: bool = False
     nogood_atol: float | None = 5e-3

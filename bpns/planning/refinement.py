@@ -229,6 +229,9 @@ class _Rollout:
                 return _Segment(subgoal, actions, states)
             if watch is not None and self.contact_values(state) != watch:
                 return CONTACT_CHANGED
+            # ``feats`` is an anchor: the state where the world last stood still. Comparing
+            # with it, not with the previous step, also catches a limit cycle (an arm
+            # chattering at its reach limit moves every step but goes nowhere).
             new_feats = self.features(state)
             if self.unchanged(feats, new_feats):
                 unchanged += 1
@@ -236,7 +239,7 @@ class _Rollout:
                     return STUCK
             else:
                 unchanged = 0
-            feats = new_feats
+                feats = new_feats
         return SKILL_HORIZON
 
 
