@@ -34,6 +34,7 @@ from mj_envs.coffee import (
     ROBOT,
     WRIST_LIMITS,
 )
+from mj_envs.phases import DemonstrationFailed, Phase, PhasedDemonstrator
 
 SAFE_Z = 0.25  # hand height for travel with the pot: it clears every cup
 FREE_Z = 0.22  # hand height for travel without the pot: the fingertips clear the knob
@@ -57,12 +58,6 @@ POUR_TURN = 0.05  # rad per step while pouring: the hand keeps up with the dippi
 UNTILT_TURN = 0.06  # back up briskly: the flow stops within a few steps
 MAX_CLOSE_STEPS, EXTRA_CLOSE_STEPS = 25, 3
 MAX_PHASE_STEPS = 200
-
-Phase = Callable[[State], "np.ndarray | None"]
-
-
-class DemonstrationFailed(RuntimeError):
-    """The scripted demonstrator could not carry on (reported, never silent)."""
 
 
 def wrap(a: float) -> float:
@@ -230,8 +225,10 @@ def release_phases(robot: Object, pot: Object, flag: str, rise_to: float) -> lis
     return [release, back_off, rise_phase(robot, rise_to, 1.0)]
 
 
-class CoffeeDemonstrator:
+class CoffeeDemonstrator(PhasedDemonstrator):
     """A stateful closed-loop oracle policy for one task (call it once per step)."""
+
+    max_phase_steps = MAX_PHASE_STEPS
 
     def __init__(self, task: Task, rng: np.random.Generator) -> None:
         self.task = task
@@ -241,27 +238,14 @@ class CoffeeDemonstrator:
         self.pot = next(o for o in objs if o.type == POT)
         self.plate = next(o for o in objs if o.type == PLATE)
         self.cups = [o for o in objs if o.type == CUP]
-        self._phases: list[Phase] = []
-        self._phase_steps = 0
+        super().__init__()
         self._stage = "start"
 
-    def __call__(self, state: State) -> np.ndarray:
-        while True:
-            if not self._phases:
-                self._phases = self._plan(state)
-                if not self._phases:
-                    return np.zeros(6)
-            action = self._phases[0](state)
-            if action is not None:
-                self._phase_steps += 1
-                if self._phase_steps > MAX_PHASE_STEPS:
-                    raise DemonstrationFailed("a phase of the demonstration did not finish")
-                return action
-            self._phases.pop(0)
-            self._phase_steps = 0
+    def idle_action(self, state: State) -> np.ndarray:
+        return np.zeros(6)
 
     # -- stages ---------------------------------------------------------------------
-    def _plan(self, s: State) -> list[Phase]:
+    def plan(self, s: State) -> list[Phase]:
         r, p = self.robot, self.pot
         if s.get(p, "spilled") > 0.5:
             raise DemonstrationFailed("spilled")
@@ -486,4 +470,3 @@ def pour_phases(robot: Object, pot: Object, cup: Object) -> list[Phase]:
 
 def demonstrator(task: Task, rng: np.random.Generator) -> CoffeeDemonstrator:
     return CoffeeDemonstrator(task, rng)
-

@@ -20,6 +20,7 @@ import numpy as np
 
 from bpns.structs import GroundAtom, Object, State, Task
 from mj_envs.cover import BLOCK, LINE_X, ROBOT, TARGET, TARGET_REGION_HALF
+from mj_envs.phases import DemonstrationFailed
 
 SAFE_Z = 0.12  # travel height of the hand (block tops are at 0.04)
 GAIN = 0.7  # proportional gain < 1 absorbs the arm's tracking lag
@@ -111,10 +112,6 @@ def release_hand_y(state: State, robot: Object, block: Object, target: Object) -
     offset = state.get(robot, "y") - state.get(block, "y")
     r = TARGET_REGION_HALF - REGION_MARGIN
     return state.get(target, "y") + float(np.clip(offset, -r, r))
-
-
-class DemonstrationFailed(RuntimeError):
-    """The scripted demonstrator could not carry on (reported, never silent)."""
 
 
 class CoverDemonstrator:

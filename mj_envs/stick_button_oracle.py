@@ -12,11 +12,10 @@ in the grasp.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from bpns.structs import Object, State, Task
+from mj_envs.phases import DemonstrationFailed, Phase, PhasedDemonstrator
 from mj_envs.stick_button import (
     BUTTON,
     HOLDER_LENGTH,
@@ -43,12 +42,6 @@ MAX_PRESS_STEPS = 40
 MAX_CLOSE_STEPS = 20
 EXTRA_CLOSE_STEPS = 3
 MAX_PHASE_STEPS = 150
-
-Phase = Callable[[State], "np.ndarray | None"]
-
-
-class DemonstrationFailed(RuntimeError):
-    """The scripted demonstrator could not carry on (reported, never silent)."""
 
 
 def move_action(state: State, robot: Object, goal_xyz: np.ndarray, grip: float) -> np.ndarray:
@@ -205,8 +198,10 @@ def pick_phases(robot: Object, stick: Object, offset: float) -> list[Phase]:
     return [rise, travel, descend, close, lift]
 
 
-class StickButtonDemonstrator:
+class StickButtonDemonstrator(PhasedDemonstrator):
     """A stateful closed-loop oracle policy for one task (call it once per step)."""
+
+    max_phase_steps = MAX_PHASE_STEPS
 
     def __init__(self, task: Task, rng: np.random.Generator) -> None:
         self.task = task
@@ -214,26 +209,13 @@ class StickButtonDemonstrator:
         self.robot = next(o for o in task.objects if o.type == ROBOT)
         self.stick = next(o for o in task.objects if o.type == STICK)
         self.buttons = [o for o in task.objects if o.type == BUTTON]
-        self._phases: list[Phase] = []
-        self._phase_steps = 0
+        super().__init__()
         self._holding = False
 
-    def __call__(self, state: State) -> np.ndarray:
-        while True:
-            if not self._phases:
-                self._phases = self._plan(state)
-                if not self._phases:
-                    return np.array([0.0, 0.0, 0.0, -1.0 if self._holding else 0.0])
-            action = self._phases[0](state)
-            if action is not None:
-                self._phase_steps += 1
-                if self._phase_steps > MAX_PHASE_STEPS:
-                    raise DemonstrationFailed("a phase of the demonstration did not finish")
-                return action
-            self._phases.pop(0)
-            self._phase_steps = 0
+    def idle_action(self, state: State) -> np.ndarray:
+        return np.array([0.0, 0.0, 0.0, -1.0 if self._holding else 0.0])
 
-    def _plan(self, state: State) -> list[Phase]:
+    def plan(self, state: State) -> list[Phase]:
         """Phases for the next button (or for picking the stick first)."""
         todo = [b for b in self.buttons if state.get(b, "pressed") < 0.5]
         if not todo:
