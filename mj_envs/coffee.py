@@ -271,7 +271,9 @@ class CoffeeEnv(MujocoEnv):
 
     name = "coffee"
     # Paper appendix B: N_abstract = 1000 for Coffee (the first abstract plans do not twist).
-    planning_defaults = {"n_abstract": 1000}
+    # Twisting the pot by its knob and letting go returns to the abstract state it started
+    # from (only the pot's rotation changed), so plans may revisit an abstract state once.
+    planning_defaults = {"n_abstract": 1000, "max_state_repeats": 1}
     controller_config = ControllerConfig(
         home_qpos=HOME_QPOS,
         workspace_low=(0.15, -0.6, 0.005),

@@ -212,7 +212,7 @@ def test_train_tasks_have_one_or_two_cups_and_eval_tasks_two_or_three(env):
         "CupFilled",
         "ButtonPressed",
     }
-    assert env.planning_defaults == {"n_abstract": 1000}
+    assert env.planning_defaults == {"n_abstract": 1000, "max_state_repeats": 1}
 
 
 def test_wrist_and_tilt_actions_turn_the_hand(env):

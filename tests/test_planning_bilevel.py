@@ -93,12 +93,32 @@ def test_samples_1_ablation_draws_one_sample_per_step():
     task = toy.make_task([8.0])
     skills = toy.skills(pick_bad_first=1)
     res = plan(task, skills, ENV, PlanningConfig(n_samples=1), RNG(0))
-    # [PressDirect]: 1 sample; [PickStick (bad grip), PressWithStick]: 1 + 1; no other plans
+    # [PressDirect]: 1 sample; [PickStick (bad grip), PressWithStick]: 1 + 1; no other
+    # acyclic plans
     assert not res.success and res.reason == "refinement_failed"
     assert res.stats.abstract_plans_tried == 2
     assert res.stats.samples_drawn == 3
     full = plan(task, toy.skills(pick_bad_first=1), ENV, PlanningConfig(), RNG(0))
     assert full.success and full.stats.samples_drawn > 3
+
+
+def test_a_plan_that_puts_the_stick_down_and_regrasps_it_recovers_from_a_bad_grip():
+    """With one abstract loop allowed, Samples=1 still solves it: Pick (bad), Place,
+    Pick (good), PressWithStick revisits the hand-empty state once."""
+    task = toy.make_task([8.0])
+    strict = plan(
+        task, toy.skills(pick_bad_first=1, pick_good=0.5), ENV, PlanningConfig(n_samples=1), RNG(0)
+    )
+    assert not strict.success  # acyclic plans: the bad grip is never undone
+    looping = PlanningConfig(n_samples=1, max_state_repeats=1)
+    res = plan(task, toy.skills(pick_bad_first=1, pick_good=0.5), ENV, looping, RNG(0))
+    assert res.success and replay_reaches_goal(task, res)
+    assert [s.name for s in res.skills] == [
+        "PickStick",
+        "PlaceStick",
+        "PickStick",
+        "PressWithStick",
+    ]
 
 
 def test_both_ablations_together_draw_a_single_sample():

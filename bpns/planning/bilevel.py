@@ -113,6 +113,7 @@ def plan(
             STRATEGIES[config.search],
             max_skeletons=config.n_abstract,
             max_length=min(config.max_plan_length, task.horizon),  # each skill acts >= once
+            max_repeats=config.max_state_repeats,
             deadline=deadline,
             stats=acc.search,
         )

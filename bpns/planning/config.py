@@ -29,6 +29,11 @@ class PlanningConfig:
                        own units: above the contact jitter of a resting scene and the
                        chatter of an arm held at its reach limit (0.6 mm per step).
     max_plan_length:   most ground skills in one abstract plan.
+    max_state_repeats: times an abstract state may recur on one abstract plan: 0 is a
+                       strictly acyclic search; 1 admits plans whose loops change only what
+                       the predicates do not see (Coffee declares it: twisting a pot by its
+                       knob and letting go returns to the same abstract state). Such plans
+                       are longer, so A* reaches them only after the acyclic ones.
     nogood_atol:       remember refuted steps and skeleton suffixes and refute a new
                        arrival from a state whose features all lie within this tolerance
                        of a refuted one (see ``bpns.planning.nogoods``); None is the
@@ -50,6 +55,7 @@ class PlanningConfig:
     stuck_steps: int = 10
     stuck_atol: float = 1e-3
     max_plan_length: int = 100
+    max_state_repeats: int = 0
     end_on_contact_change: bool = False
     nogood_atol: float | None = 5e-3
     reuse_prefixes: bool = True
@@ -72,6 +78,8 @@ class PlanningConfig:
             raise ValueError(f"timeout must be > 0, got {self.timeout}")
         if self.nogood_atol is not None and not self.nogood_atol >= 0:
             raise ValueError(f"nogood_atol must be >= 0 or None, got {self.nogood_atol}")
+        if self.max_state_repeats < 0:
+            raise ValueError(f"max_state_repeats must be >= 0, got {self.max_state_repeats}")
         if self.stuck_atol < 0:
             raise ValueError(f"stuck_atol must be >= 0, got {self.stuck_atol}")
 

@@ -80,13 +80,14 @@ class _Node:
         self.g = g
         self.depth = depth
 
-    def on_path(self, state: int) -> bool:
+    def visits(self, state: int) -> int:
+        """How often ``state`` occurs on the path from the root to this node."""
+        n = 0
         node: _Node | None = self
         while node is not None:
-            if node.state == state:
-                return True
+            n += node.state == state
             node = node.parent
-        return False
+        return n
 
 
 def skeletons(
@@ -96,12 +97,15 @@ def skeletons(
     *,
     max_skeletons: int,
     max_length: int,
+    max_repeats: int = 0,
     deadline: float | None = None,
     stats: SearchStats | None = None,
 ) -> Iterator[AbstractPlan]:
     """Yield up to ``max_skeletons`` distinct abstract plans in ``priority`` order.
 
-    Plans have at most ``max_length`` operators and never repeat an abstract state.
+    Plans have at most ``max_length`` operators, and an abstract state recurs on one plan
+    at most ``max_repeats`` times: a loop in the abstraction can be real progress in the
+    world (turning a pot by its knob and letting go changes only a continuous feature).
     Operators cost 1. ``heuristic=None`` means h = 0 (and no dead-end pruning). The
     generator raises :class:`~bpns.planning.strips.SearchTimeout` once ``deadline``
     (a ``time.monotonic()`` value) has passed, and simply ends when the space is exhausted.
@@ -145,7 +149,7 @@ def skeletons(
             if state & p != p:
                 continue
             child = (state & ~delete[i]) | add[i]
-            if node.on_path(child):
+            if node.visits(child) > max_repeats:
                 continue
             check_deadline(deadline)
             h = h_of(child)
