@@ -272,7 +272,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
         write_results(args.out, reports, table)
         print(f"wrote {args.out / 'results.json'} and {args.out / 'results.md'}")
     if args.video is not None:
-        render_longest_solved(env, reports[0], args.video, args.seed, args.train)
+        # the first approach named that solved anything (e.g. the oracle, when skills
+        # learned from a handful of demos solve nothing)
+        solving = next((r for r in reports if r.num_solved), reports[0])
+        render_longest_solved(env, solving, args.video, args.seed, args.train)
     return 0 if all(r.num_solved for r in reports) else 1
 
 
