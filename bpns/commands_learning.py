@@ -190,15 +190,7 @@ def eval_args(p: argparse.ArgumentParser) -> None:
 
 
 def _tolerance_or_off(text: str) -> float | str:
-    if text == "off":
-        return text
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number or 'off', got {text!r}") from None
-    if not v >= 0.0:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0 or 'off', got {text!r}")
-    return v
+    return text if text == "off" else _nonnegative_float(text)
 
 
 def cmd_eval(args: argparse.Namespace) -> int:

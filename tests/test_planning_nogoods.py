@@ -109,32 +109,13 @@ def test_a_later_skeleton_starts_after_the_prefix_already_refined():
     )
     table = by_op(toy.skills(pick_good=0.5))
     cache = PrefixCache()
-    a = refine(
-        first,
-        [table[o.operator] for o in first.operators],
-        task,
-        ENV,
-        PlanningConfig(),
-        np.random.default_rng(0),
-        prefixes=cache,
-    )
-    b = refine(
-        second,
-        [table[o.operator] for o in second.operators],
-        task,
-        ENV,
-        PlanningConfig(),
-        np.random.default_rng(0),
-        prefixes=cache,
-    )
-    alone = refine(
-        second,
-        [table[o.operator] for o in second.operators],
-        task,
-        ENV,
-        PlanningConfig(),
-        np.random.default_rng(0),
-    )
+
+    def run(sk, prefixes):
+        skills = [table[o.operator] for o in sk.operators]
+        rng = np.random.default_rng(0)
+        return refine(sk, skills, task, ENV, PlanningConfig(), rng, prefixes=prefixes)
+
+    a, b, alone = run(first, cache), run(second, cache), run(second, None)
     assert not a.success and b.success and alone.success
     assert cache.steps_reused == 1
     assert b.stats.sim_steps < alone.stats.sim_steps
