@@ -6,11 +6,12 @@ aligned to its faces, the wrist turns until the pot's rotation reaches a drawn t
 5-30 deg on the side it was turned to, and the knob is let go. Then the pot is picked by
 the handle (wrist turned by the pot's rotation, fingers in the handle's finger slot), put
 on the hot plate and let go, the closed fingertips press the plate's button, and the pot
-is picked again and held until hot. The cups are filled nearest first: the measured spout
-tip is brought over the cup high enough for the hanging pot to clear every cup nearby,
-the pot is tilted past the pouring angle while the hand keeps the tip over the cup (and
-rises as the tip dips), and it is tilted back as soon as the cup holds its target. With
-the pot in the hand, steps are shortened so it does not swing in the grasp.
+is picked again and held until hot. The cups are filled in a random order (a systematic
+one, e.g. nearest first, teaches skills only that order, and the planner tries all): the
+measured spout tip is brought over the cup high enough for the hanging pot to clear every
+cup nearby, the pot is tilted past the pouring angle while the hand keeps the tip over the
+cup (and rises as the tip dips), and it is tilted back as soon as the cup holds its
+target. With the pot in the hand, steps are shortened so it does not swing in the grasp.
 """
 
 from __future__ import annotations
@@ -271,8 +272,9 @@ class CoffeeDemonstrator(PhasedDemonstrator):
             return []
         if s.get(p, "held") < 0.5:
             raise DemonstrationFailed("lost the pot")
-        spout = np.array([s.get(p, "spout_x"), s.get(p, "spout_y")])
-        cup = min(todo, key=lambda c: float(np.linalg.norm(s.data[c][:2] - spout)))
+        # A random order, not nearest first: the planner tries cups in every order, and
+        # skills learned from one systematic order fail on the others (out of distribution).
+        cup = todo[int(self.rng.integers(len(todo)))]
         return pour_phases(r, p, cup)
 
 
@@ -408,11 +410,22 @@ def spout(s: State, pot: Object) -> np.ndarray:
 
 
 def pour_step(
-    s: State, robot: Object, pot: Object, cup: Object, tilt: float, rate: float
+    s: State,
+    robot: Object,
+    pot: Object,
+    cup: Object,
+    tilt: float,
+    rate: float,
+    descend: bool = True,
 ) -> np.ndarray:
-    """Keep the spout tip over ``cup`` at a clear height while turning to pot tilt ``tilt``."""
+    """Keep the spout tip over ``cup`` at a clear height while turning to pot tilt ``tilt``.
+
+    ``descend=False`` never lowers the hand: tilting back raises the tip, and following it
+    down swings the pot's back edge into a neighbouring cup."""
     tip_goal = np.array([s.get(cup, "x"), s.get(cup, "y"), spout_height(s, pot, cup)])
     goal = hand(s, robot) + tip_goal - spout(s, pot)
+    if not descend:
+        goal[2] = max(goal[2], hand(s, robot)[2])
     action = move_action(s, robot, goal, -1.0)
     action[3] = float(np.clip(TURN_GAIN * (tilt - s.get(robot, "tilt")), -rate, rate))
     return action
@@ -463,7 +476,7 @@ def pour_phases(robot: Object, pot: Object, cup: Object) -> list[Phase]:
         check(s)
         if s.get(pot, "tilt") < POUR_TILT - 0.15 and turned(s, robot, None, 0.0):
             return None
-        return pour_step(s, robot, pot, cup, 0.0, UNTILT_TURN)
+        return pour_step(s, robot, pot, cup, 0.0, UNTILT_TURN, descend=False)
 
     return [rise, carry, lower, pour, untilt]
 

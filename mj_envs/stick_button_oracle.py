@@ -1,13 +1,13 @@
 """Scripted Stick Button demonstrator: closed-loop on features, acting only through actions.
 
 First every unpressed button within the fingertips' reach is pressed with the closed
-fingers (nearest first). If buttons remain, the stick is picked up by its free part, at a
+fingers (in a random order). If buttons remain, the stick is picked up by its free part, at a
 grasp point drawn so that the tip reaches every remaining button with the hand inside
 its comfortable reach (grasping nearer the holder reaches further), and each remaining
 button is pressed with the tip. A press moves the pusher (fingertips or tip, whose offset
-from the hand is re-measured every step) above the cap, lowers it to just above the cap
-and then pushes slowly until the joint reading says Pressed, so the stick is not jolted
-in the grasp.
+from the hand is re-measured every step) above the cap and lowers it toward a point 11 mm
+below the cap's rest top, slowing to 6 mm per step in the last 6 cm, until the joint
+reading says Pressed.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from bpns.structs import Object, State, Task
 from mj_envs.phases import DemonstrationFailed, Phase, PhasedDemonstrator
 from mj_envs.stick_button import (
     BUTTON,
+    CAP_REST_TOP,
     HOLDER_LENGTH,
     ROBOT,
     STICK,
@@ -29,8 +30,7 @@ SAFE_Z = 0.15  # hand height for travel: the held stick clears every cap
 GAIN = 0.7
 POS_TOL = 0.003
 FINGERTIP_DROP = 0.012  # closed fingertips' lowest point below the gripper centre
-APPROACH_CLEARANCE = 0.008  # pusher height above the cap before the slow push
-PRESS_SPEED = 0.003  # metres per step while pushing
+PRESS_DEPTH = 0.011  # the pusher aims this far below the cap's rest top (latch: 8 mm)
 FINGER_REACH = 0.80  # buttons closer than this (xy, from the base) are pressed by hand
 HAND_REACH = 0.76  # where the hand may go while pressing with the stick
 GRASP_Z_ABOVE_CENTRE = 0.005
@@ -38,7 +38,7 @@ GRASP_MIN = HOLDER_LENGTH + 0.018  # grasp offsets from the back end: the free p
 GRASP_MAX = STICK_LENGTH - 0.04
 TIP_FROM_BACK = STICK_LENGTH - TIP_INSET
 SLOW_ZONE, SLOW_STEP = 0.06, 0.006  # last 6 cm of a descent at <= 6 mm per step
-MAX_PRESS_STEPS = 40
+MAX_PRESS_STEPS = 80
 MAX_CLOSE_STEPS = 20
 EXTRA_CLOSE_STEPS = 3
 MAX_PHASE_STEPS = 150
@@ -122,7 +122,12 @@ def grasp_point(state: State, stick: Object, offset: float) -> np.ndarray:
 
 
 def press_phases(robot: Object, button: Object, stick: Object | None, grip: float) -> list[Phase]:
-    """Rise, travel above ``button``, lower the pusher to just above the cap, push slowly."""
+    """Rise, travel above ``button``, then lower the pusher in one proportional descent
+    (slowed near the cap) toward a point below the latch depth until the cap latches.
+
+    One smooth descent rather than "stop above the cap, then push at 3 mm per step": a
+    cloned policy learns it well, whereas the stop-then-creep switch taught skills to
+    hover a centimetre above the cap."""
     count = {"press": 0}
 
     def target_xy(s: State) -> np.ndarray:
@@ -137,22 +142,17 @@ def press_phases(robot: Object, button: Object, stick: Object | None, grip: floa
         goal[2] = SAFE_Z
         return None if at(s, robot, goal, 2 * POS_TOL) else move_action(s, robot, goal, grip)
 
-    def approach(s: State) -> np.ndarray | None:
-        z = s.get(button, "z") + APPROACH_CLEARANCE
-        goal = hand_goal_for_pusher(s, robot, stick, np.array([*target_xy(s), z]))
-        return None if at(s, robot, goal) else move_action(s, robot, goal, grip)
-
-    def push(s: State) -> np.ndarray | None:
+    def press(s: State) -> np.ndarray | None:
         if s.get(button, "pressed") > 0.5:
             return None
         count["press"] += 1
         if count["press"] > MAX_PRESS_STEPS:
             raise DemonstrationFailed(f"could not press {button.name}")
-        p = pusher(s, robot, stick)
-        dxy = GAIN * (target_xy(s) - p[:2])
-        return np.array([dxy[0], dxy[1], -PRESS_SPEED, grip])
+        z = CAP_REST_TOP - PRESS_DEPTH
+        goal = hand_goal_for_pusher(s, robot, stick, np.array([*target_xy(s), z]))
+        return slow_near(s, robot, goal, grip)
 
-    return [rise, travel, approach, push, rise]
+    return [rise, travel, press, rise]
 
 
 def pick_phases(robot: Object, stick: Object, offset: float) -> list[Phase]:
@@ -220,19 +220,19 @@ class StickButtonDemonstrator(PhasedDemonstrator):
         todo = [b for b in self.buttons if state.get(b, "pressed") < 0.5]
         if not todo:
             return []
-        hand = state.data[self.robot][:2]
+        # Buttons in a random order, not nearest first: the planner tries every order, and
+        # skills learned from one systematic order fail on the others.
         if not self._holding:
             by_hand = [b for b in todo if reachable_by_hand(state, b)]
             if by_hand:
-                b = min(by_hand, key=lambda o: float(np.linalg.norm(state.data[o][:2] - hand)))
+                b = by_hand[int(self.rng.integers(len(by_hand)))]
                 return press_phases(self.robot, b, None, grip=-1.0)
             offset = sample_grasp_offset(state, todo, self.rng)
             self._holding = True
             return pick_phases(self.robot, self.stick, offset)
         if state.get(self.stick, "grasped") < 0.5:
             raise DemonstrationFailed(f"lost {self.stick.name}")
-        tip = np.array([state.get(self.stick, "tip_x"), state.get(self.stick, "tip_y")])
-        b = min(todo, key=lambda o: float(np.linalg.norm(state.data[o][:2] - tip)))
+        b = todo[int(self.rng.integers(len(todo)))]
         return press_phases(self.robot, b, self.stick, grip=-1.0)
 
 

@@ -36,13 +36,11 @@ from mj_envs.stick_button import (
     STICK_HEIGHT,
 )
 from mj_envs.stick_button_oracle import (
-    APPROACH_CLEARANCE,
     FINGER_REACH,
     GRASP_MAX,
     GRASP_MIN,
     HAND_REACH,
     POS_TOL,
-    PRESS_SPEED,
     SAFE_Z,
     SLOW_STEP,
     grasp_limit_for,
@@ -52,6 +50,9 @@ from mj_envs.stick_button_oracle import (
     slow_near,
     stick_axis,
 )
+
+APPROACH_CLEARANCE = 0.008  # pusher height above the cap before the slow push
+PRESS_SPEED = 0.003  # metres per step while pushing
 
 XY_NOISE = 0.004  # subgoal jitter of press points (the cap is 4.4 cm wide)
 ALIGNED_HIGH, ALIGNED_LOW = 0.006, 0.012  # xy error to start / keep descending

@@ -23,7 +23,6 @@ from mj_envs.stick_button import (
     STICK_HEIGHT,
 )
 from mj_envs.stick_button_oracle import (
-    APPROACH_CLEARANCE,
     FINGER_REACH,
     FINGERTIP_DROP,
     GRASP_MIN,
@@ -31,7 +30,7 @@ from mj_envs.stick_button_oracle import (
     grasp_point,
     move_action,
 )
-from mj_envs.stick_button_skills import PLANNING_CONFIG
+from mj_envs.stick_button_skills import APPROACH_CLEARANCE, PLANNING_CONFIG
 
 
 @pytest.fixture(scope="module")
