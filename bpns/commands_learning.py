@@ -48,6 +48,12 @@ def learn_args(p: argparse.ArgumentParser) -> None:
         help="BPNS-NoSubgoal: policies without subgoals, no samplers",
     )
     p.add_argument(
+        "--no-anchor",
+        action="store_true",
+        help="operator parameters = affected objects only, as in the paper (no anchored "
+        "parameters such as the robot holding the pressing stick)",
+    )
+    p.add_argument(
         "--settle-steps",
         type=positive,
         help="contact changes closer than this are one event "
@@ -86,6 +92,7 @@ def cmd_learn(args: argparse.Namespace) -> int:
         seed=args.seed,
         min_segment_fraction=args.min_segment_fraction,
         use_subgoals=not args.no_subgoals,
+        anchor_parameters=not args.no_anchor,
         settle_steps=args.settle_steps or int(getattr(env, "contact_settle_steps", 1)),
     )
     quiet = not sys.stderr.isatty() and os.environ.get("BPNS_PROGRESS") != "1"

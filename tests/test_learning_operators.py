@@ -2,7 +2,7 @@
 
 import pytest
 
-from bpns.learning.operators import applicable_bindings, learn_operators
+from bpns.learning.operators import anchor_parameters, applicable_bindings, learn_operators
 from bpns.learning.partition import partition_segments
 from bpns.structs import GroundAtom, Object, Type
 from tests.test_learning_partition import (
@@ -41,11 +41,36 @@ def test_preconditions_are_the_intersection_of_lifted_initial_atoms():
     assert dataset.bindings == ((B[0], R), (B[2], R), (B[3], R))
 
 
-def test_atoms_over_objects_outside_the_scope_are_discarded():
+def test_atoms_over_objects_outside_the_scope_are_discarded_without_anchoring():
     # On(b0, b1) holds in both segments but b1 is not an affected object.
     segs = [_pick_with(b, GroundAtom(ON, (b, B[1]))) for b in (B[0], B[2])]
-    (dataset,) = learn_operators(partition_segments(segs))
+    (dataset,) = learn_operators(partition_segments(segs), anchor=False)
     assert {str(a) for a in dataset.operator.preconditions} == {"HandEmpty(?robot0)"}
+
+
+def test_an_object_related_to_the_parameters_in_every_segment_becomes_a_parameter():
+    # Each picked block sits on some other block (a different one each time): the block
+    # underneath is anchored by On(picked, under) and the relation becomes a precondition.
+    segs = [
+        _pick_with(top, GroundAtom(ON, (top, under))) for top, under in ((B[0], B[1]), (B[2], B[3]))
+    ]
+    (dataset,) = learn_operators(partition_segments(segs))
+    op = dataset.operator
+    assert [v.name for v in op.parameters] == ["?block0", "?robot0", "?block1"]
+    assert {str(a) for a in op.preconditions} == {"HandEmpty(?robot0)", "On(?block0, ?block1)"}
+    assert dataset.bindings == ((B[0], R, B[1]), (B[2], R, B[3]))
+
+
+def test_anchoring_needs_the_relation_in_every_segment_and_one_object_each():
+    on = [_pick_with(B[0], GroundAtom(ON, (B[0], B[1]))), pick(B[2])]  # not in every segment
+    ambiguous = [
+        _pick_with(B[0], GroundAtom(ON, (B[0], B[1])), GroundAtom(ON, (B[0], B[3]))),
+        _pick_with(B[2], GroundAtom(ON, (B[2], B[4]))),
+    ]
+    unary = [_pick_with(b, GroundAtom(CLEAR, (B[4],))) for b in (B[0], B[2])]
+    for segs in (on, ambiguous, unary):
+        (group,) = partition_segments(segs)
+        assert anchor_parameters(group) is group
 
 
 def _mixed(n_common, n_rare):

@@ -53,6 +53,33 @@ def test_training_pairs_use_relative_subgoals_over_changing_dims():
     np.testing.assert_array_equal(x, [[0.0], [1.0]])
 
 
+def test_near_goal_features_squash_the_relative_subgoal():
+    scopes = [np.array([[0.0, 5.0], [0.99, 5.0], [1.0, 5.0]])]
+    actions = [np.array([[1.0], [0.01]])]
+    dims = ScopeDims(2, np.array([0]), np.array([0]))
+    x, _ = policy_training_data(scopes, actions, dims, near_scale=0.01)
+    np.testing.assert_allclose(x, [[0.0, 1.0, np.tanh(100.0)], [0.99, 0.01, np.tanh(1.0)]])
+
+
+def test_near_goal_policy_round_trips_and_matches_its_training_inputs():
+    config = LearningConfig(near_goal_scale=0.05, policy=MLPConfig(num_steps=50, batch_size=64))
+    policy = learn_policy(toy.point_dataset(20, seed=0), config, seed=0)
+    assert policy.near_scale == 0.05 and policy.params.input_dim == 6
+    back = LearnedPolicy.from_arrays(policy.to_arrays())
+    assert back.near_scale == 0.05
+    state, goal = toy.point_state([0.3, -0.2]), np.array([0.31, 0.5])
+    np.testing.assert_array_equal(
+        back(state, (toy.POINT_OBJ,), goal), policy(state, (toy.POINT_OBJ,), goal)
+    )
+    old = {k: v for k, v in policy.to_arrays().items() if k != "near_scale"}
+    assert LearnedPolicy.from_arrays(old).near_scale is None  # skills saved before it
+
+
+def test_near_goal_scale_must_be_positive():
+    with pytest.raises(ValueError, match="near_goal_scale"):
+        LearningConfig(near_goal_scale=0.0)
+
+
 def test_policy_recovers_a_linear_controller_and_reaches_subgoals(point_policy):
     rng = np.random.default_rng(1)
     errors = []

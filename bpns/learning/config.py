@@ -50,6 +50,12 @@ class LearningConfig:
     min_segment_fraction: float = 0.01
     # False gives the BPNS-NoSubgoal baseline: policies see the state only, no sampler.
     use_subgoals: bool = True
+    # Add operator parameters for unaffected objects that a relation ties to the affected
+    # ones in every segment (operators.anchor_parameters). False: the paper's operators.
+    anchor_parameters: bool = True
+    # Policies also see tanh(relative subgoal / this), in feature units (metres, radians):
+    # resolution near the subgoal, where demonstrators switch (policies.py). None: off.
+    near_goal_scale: float | None = 0.01
     # A scope dimension counts as "changing" when |final - initial| exceeds this in some
     # segment, and as static when its range over all the skill's states is within it.
     change_tolerance: float = 0.0
@@ -76,5 +82,7 @@ class LearningConfig:
             raise ValueError(f"settle_steps must be >= 1, got {self.settle_steps}")
         if self.max_rejection_tries < 1:
             raise ValueError(f"max_rejection_tries must be >= 1, got {self.max_rejection_tries}")
+        if self.near_goal_scale is not None and not self.near_goal_scale > 0.0:
+            raise ValueError(f"near_goal_scale must be > 0, got {self.near_goal_scale}")
         if self.change_tolerance < 0.0:
             raise ValueError(f"change_tolerance must be >= 0, got {self.change_tolerance}")

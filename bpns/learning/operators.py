@@ -2,6 +2,11 @@
 
 Effects come straight from a group's lifted effects; preconditions are the lifted
 initial atoms common to every segment of the group. Rare groups are filtered out.
+
+Beyond the paper, a group's parameters may be extended by *anchored* objects (see
+:func:`anchor_parameters`): with parameters = affected objects only, a precondition that
+relates an affected object to an unaffected one (the robot holding the stick that
+presses a button) is dropped, and the planner proposes pressing with a stick nobody holds.
 """
 
 from __future__ import annotations
@@ -55,19 +60,90 @@ def induce_preconditions(group: SegmentGroup) -> frozenset[LiftedAtom]:
     return pre or frozenset()
 
 
+def anchor_parameters(group: SegmentGroup) -> SegmentGroup:
+    """``group`` with a parameter added for every object outside its effects that a
+    relation ties to its parameters in the initial state of *every* segment.
+
+    A pattern is a predicate of arity >= 2 with exactly one argument outside the
+    segment's parameters and the others equal to given parameters, e.g.
+    ``Grasped(?robot, ?stick0)`` for a stick press whose parameters are the button and
+    the stick. It anchors a new parameter when it holds in every segment for exactly one
+    object; the most common such patterns are taken one at a time (first by predicate
+    name, argument position and variables), so a chain (a pot on the plate, the plate a
+    parameter) is followed too. Unary atoms of outside objects never anchor: they would
+    only make the skill's scope larger. The new parameters then take part in precondition
+    induction and in the skill's scope like any other.
+    """
+    params = list(group.parameters)
+    subs = [dict(s) for s in group.substitutions]
+    while True:
+        found = [
+            _outside_relations(seg.init_atoms, sub)
+            for seg, sub in zip(group.segments, subs, strict=True)
+        ]
+        common = set.intersection(*(set(f) for f in found)) if found else set()
+        usable = sorted(
+            (key for key in common if all(len(f[key]) == 1 for f in found)),
+            key=lambda key: (key[0].name, key[1], tuple(str(v) for v in key[2])),
+        )
+        if not usable:
+            break
+        predicate, position, _ = usable[0]
+        new_type = predicate.types[position]
+        var = Variable(f"?{new_type.name}{sum(v.type == new_type for v in params)}", new_type)
+        while var in params:  # a name taken by a type with a digit-ending name: extend
+            var = Variable(var.name + "_", new_type)
+        for sub, f in zip(subs, found, strict=True):
+            (obj,) = f[usable[0]]
+            sub[obj] = var
+        params.append(var)
+    if len(params) == len(group.parameters):
+        return group
+    return SegmentGroup(
+        parameters=tuple(params),
+        add_effects=group.add_effects,
+        delete_effects=group.delete_effects,
+        segments=group.segments,
+        substitutions=tuple(subs),
+    )
+
+
+def _outside_relations(
+    atoms: Collection[GroundAtom], sub: Mapping[Object, Variable]
+) -> dict[tuple, set[Object]]:
+    """(predicate, outside position, lifted arguments) -> objects at that position, over
+    the atoms with exactly one argument outside ``sub`` (arity >= 2)."""
+    out: dict[tuple, set[Object]] = defaultdict(set)
+    for atom in atoms:
+        if len(atom.objects) < 2:
+            continue
+        outside = [k for k, o in enumerate(atom.objects) if o not in sub]
+        if len(outside) != 1:
+            continue
+        k = outside[0]
+        lifted = tuple(None if i == k else sub[o] for i, o in enumerate(atom.objects))
+        out[(atom.predicate, k, lifted)].add(atom.objects[k])
+    return out
+
+
 def learn_operators(
-    groups: Sequence[SegmentGroup], min_segment_fraction: float = 0.01
+    groups: Sequence[SegmentGroup],
+    min_segment_fraction: float = 0.01,
+    anchor: bool = True,
 ) -> list[SkillDataset]:
     """One operator per group holding at least ``min_segment_fraction`` of all segments.
 
     Operators are named ``Op0, Op1, ...`` by decreasing dataset size (ties: first
-    appearance in the demos), so names are stable for a given dataset.
+    appearance in the demos), so names are stable for a given dataset. ``anchor`` adds
+    anchored parameters (:func:`anchor_parameters`) before preconditions are induced.
     """
     total = sum(len(g) for g in groups)
     kept = [(i, g) for i, g in enumerate(groups) if len(g) >= min_segment_fraction * total]
     kept.sort(key=lambda ig: (-len(ig[1]), ig[0]))
     datasets = []
     for k, (_, group) in enumerate(kept):
+        if anchor:
+            group = anchor_parameters(group)
         op = STRIPSOperator(
             name=f"Op{k}",
             parameters=group.parameters,

@@ -5,6 +5,13 @@ parameter order. The policy input is the scope without static dimensions, follow
 the *relative* subgoal (subgoal - current) over the dimensions that change in the data;
 because the relative subgoal is recomputed every step, a policy conditioned on an
 absolute subgoal gets closed-loop feedback for free.
+
+Optionally the relative subgoal is given twice, the second time as
+``tanh(relative / near_scale)``. Demonstrators switch behaviour within millimetres of
+a goal (close the fingers on arrival, start pushing); after standardisation by a
+spread of decimetres that region is a sliver of input space that a small network
+blurs, and the cloned skill closes its fingers early or hovers short of a button. The
+squashed copy resolves exactly that region (and is flat far away).
 """
 
 from __future__ import annotations
@@ -76,15 +83,20 @@ def policy_training_data(
     actions: Sequence[np.ndarray],
     dims: ScopeDims,
     use_subgoals: bool = True,
+    near_scale: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(inputs, targets): one row per step i of each segment, input = scope_i[state dims]
-    (+ (scope_end - scope_i)[subgoal dims]), target = action_i."""
+    (+ rel_i = (scope_end - scope_i)[subgoal dims], + tanh(rel_i / near_scale)),
+    target = action_i."""
     xs, ys = [], []
     for scope, acts in zip(scopes, actions, strict=True):
         current = scope[:-1]
         parts = [current[:, dims.state_dims]]
         if use_subgoals:
-            parts.append((scope[-1] - current)[:, dims.subgoal_dims])
+            rel = (scope[-1] - current)[:, dims.subgoal_dims]
+            parts.append(rel)
+            if near_scale is not None:
+                parts.append(np.tanh(rel / near_scale))
         xs.append(np.concatenate(parts, axis=1))
         ys.append(np.asarray(acts, dtype=np.float64).reshape(len(current), -1))
     return np.concatenate(xs, axis=0), np.concatenate(ys, axis=0)
@@ -94,10 +106,17 @@ class LearnedPolicy:
     """SubgoalPolicy backed by a numpy MLP. Outputs are returned unclipped and unchecked
     (non-finite values included): action limits and validity are the planner's job."""
 
-    def __init__(self, dims: ScopeDims, params: MLPParams, use_subgoals: bool = True) -> None:
+    def __init__(
+        self,
+        dims: ScopeDims,
+        params: MLPParams,
+        use_subgoals: bool = True,
+        near_scale: float | None = None,
+    ) -> None:
         self.dims = dims
         self.params = params
         self.use_subgoals = use_subgoals
+        self.near_scale = near_scale
         self._net = Regressor(params)
         self._sd, self._gd = dims.state_dims, dims.subgoal_dims
 
@@ -108,7 +127,11 @@ class LearnedPolicy:
                 f"scope has {x.shape[0]} features, the policy expects {self.dims.size}"
             )
         if self.use_subgoals:
-            x = np.concatenate((x[self._sd], subgoal[self._gd] - x[self._gd]))
+            rel = subgoal[self._gd] - x[self._gd]
+            if self.near_scale is None:
+                x = np.concatenate((x[self._sd], rel))
+            else:
+                x = np.concatenate((x[self._sd], rel, np.tanh(rel / self.near_scale)))
         else:
             x = x[self._sd]
         return self._net(x)
@@ -118,14 +141,17 @@ class LearnedPolicy:
             **self.dims.to_arrays("dims/"),
             **self.params.to_arrays("net/"),
             "use_subgoals": np.array(self.use_subgoals),
+            "near_scale": np.array(np.nan if self.near_scale is None else self.near_scale),
         }
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> LearnedPolicy:
+        near = float(arrays["near_scale"]) if "near_scale" in arrays else float("nan")
         return cls(
             ScopeDims.from_arrays(arrays, "dims/"),
             MLPParams.from_arrays(arrays, "net/"),
             bool(arrays["use_subgoals"]),
+            None if np.isnan(near) else near,
         )
 
 
@@ -136,9 +162,11 @@ def train_policy(
     config: MLPConfig,
     seed: int,
     use_subgoals: bool = True,
+    near_scale: float | None = None,
 ) -> LearnedPolicy:
-    inputs, targets = policy_training_data(scopes, actions, dims, use_subgoals)
-    return LearnedPolicy(dims, train_regressor(inputs, targets, config, seed), use_subgoals)
+    inputs, targets = policy_training_data(scopes, actions, dims, use_subgoals, near_scale)
+    params = train_regressor(inputs, targets, config, seed)
+    return LearnedPolicy(dims, params, use_subgoals, near_scale)
 
 
 def learn_policy(
@@ -153,4 +181,6 @@ def learn_policy(
     scopes = scope_trajectories(dataset) if scopes is None else scopes
     dims = ScopeDims.from_scopes(scopes, config.change_tolerance) if dims is None else dims
     actions = [seg.actions for seg in dataset.segments]
-    return train_policy(scopes, actions, dims, config.policy, seed, config.use_subgoals)
+    return train_policy(
+        scopes, actions, dims, config.policy, seed, config.use_subgoals, config.near_goal_scale
+    )
