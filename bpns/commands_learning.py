@@ -48,6 +48,12 @@ def learn_args(p: argparse.ArgumentParser) -> None:
         help="BPNS-NoSubgoal: policies without subgoals, no samplers",
     )
     p.add_argument(
+        "--near-goal-scale",
+        type=_tolerance_or_off,
+        help="policies also see tanh(relative subgoal / this) (feature units), or 'off' as "
+        "in the paper (default: the environment's, else off)",
+    )
+    p.add_argument(
         "--no-anchor",
         action="store_true",
         help="operator parameters = affected objects only, as in the paper (no anchored "
@@ -70,12 +76,15 @@ def learn_args(p: argparse.ArgumentParser) -> None:
 
 def cmd_learn(args: argparse.Namespace) -> int:
     from bpns.datasets import DatasetError, count_demonstrations, iter_demonstrations
-    from bpns.learning import LearningConfig, learn_skills, save_skills
+    from bpns.learning import learn_skills, save_skills
+    from bpns.learning.config import learning_config_for
 
     if args.out.exists() and not args.overwrite:
         raise UserError(f"{args.out} exists; pass --overwrite to replace it")
     if args.min_segment_fraction > 1.0:
         raise UserError(f"--min-segment-fraction must be <= 1, got {args.min_segment_fraction}")
+    if args.near_goal_scale == 0.0:
+        raise UserError("--near-goal-scale must be > 0 or 'off', got 0")
     env = file_env(args.demos, None)
     try:
         total = count_demonstrations(args.demos)
@@ -88,13 +97,17 @@ def cmd_learn(args: argparse.Namespace) -> int:
     import torch
 
     torch.set_num_threads(args.threads)
-    config = LearningConfig(
+    config = learning_config_for(
+        env,
         seed=args.seed,
         min_segment_fraction=args.min_segment_fraction,
-        use_subgoals=not args.no_subgoals,
-        anchor_parameters=not args.no_anchor,
-        settle_steps=args.settle_steps or int(getattr(env, "contact_settle_steps", 1)),
+        use_subgoals=False if args.no_subgoals else None,
+        anchor_parameters=False if args.no_anchor else None,
+        settle_steps=args.settle_steps,
     )
+    if args.near_goal_scale is not None:
+        near = None if args.near_goal_scale == "off" else args.near_goal_scale
+        config = dataclasses.replace(config, near_goal_scale=near)
     quiet = not sys.stderr.isatty() and os.environ.get("BPNS_PROGRESS") != "1"
 
     def report(message: str) -> None:

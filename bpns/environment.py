@@ -38,6 +38,9 @@ class Environment(Protocol):
     # Optional: PlanningConfig fields this domain plans with by default, e.g. the
     # paper's ``{"n_abstract": 1000}`` where many abstract plans are not refinable.
     # ``planning_defaults: Mapping[str, object]``
+    # Optional: LearningConfig fields this domain learns with by default, e.g.
+    # ``{"near_goal_scale": 0.01}`` where the demonstrator switches near its goals.
+    # ``learning_defaults: Mapping[str, object]``
 
     @property
     def goal_predicates(self) -> frozenset[Predicate]: ...

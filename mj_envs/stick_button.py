@@ -142,6 +142,8 @@ class StickButtonEnv(MujocoEnv):
     # Paper appendix B: many abstract plans are not refinable here (whether a button is
     # within reach is not in the predicates), so the planner may try up to 1000.
     planning_defaults = {"n_abstract": 1000}
+    # The demonstrator switches within millimetres of its goals (close the fingers, press).
+    learning_defaults = {"near_goal_scale": 0.01}
     # The hand is turned a quarter turn about the vertical (joint 7) so the fingers close
     # along y and hold the stick along +x; the workspace box reaches past the arm's own
     # limit so that reach is decided by kinematics, not by clipping.

@@ -112,6 +112,8 @@ def _cli(*args: str, cwd=None) -> subprocess.CompletedProcess:
     "args, message",
     [
         (("learn", "missing.h5", "--out", "sk"), "no such demonstration file"),
+        (("learn", "d.h5", "--out", "sk", "--near-goal-scale", "0"), "must be > 0 or 'off'"),
+        (("learn", "d.h5", "--out", "sk", "--near-goal-scale", "x"), "--near-goal-scale"),
         (("skills", "show", "nowhere"), "not a skills directory"),
         (("eval", "--approach", "oracle"), "pass --env (or --skills)"),
         (("eval", "--env", "cover"), "learned approaches need --skills"),
@@ -125,6 +127,22 @@ def test_bad_learning_and_eval_input_is_one_line(tmp_path, args, message):
     assert proc.returncode == 2, proc.stderr
     assert message in proc.stderr and "Traceback" not in proc.stderr
     assert not (tmp_path / "sk").exists()
+
+
+def test_learning_settings_come_from_the_environment_unless_given(run_dir, tmp_path):
+    def learned_config(*extra: str) -> dict:
+        out = tmp_path / "sk"
+        args = ["learn", str(run_dir / "demos.h5"), "--limit", "4", "--out", str(out)]
+        assert main([*args, "--overwrite", *extra]) == 0
+        return json.loads((out / "skills.json").read_text())["config"]
+
+    cover = learned_config()  # Cover declares contact settling, nothing else
+    assert cover["settle_steps"] == 4 and cover["near_goal_scale"] is None
+    assert cover["anchor_parameters"] is True
+    given = learned_config("--near-goal-scale", "0.02", "--no-anchor", "--settle-steps", "2")
+    assert given["near_goal_scale"] == 0.02 and given["anchor_parameters"] is False
+    assert given["settle_steps"] == 2
+    assert learned_config("--near-goal-scale", "off")["near_goal_scale"] is None
 
 
 def test_a_damaged_skills_directory_is_reported_not_raised(run_dir, tmp_path):

@@ -115,3 +115,14 @@ def test_environments_declare_planning_defaults_that_cli_settings_override():
     assert planning_config_for(Env(), timeout=5.0).n_abstract == 1000
     config = planning_config_for(Env(), n_abstract=3, n_samples=None)
     assert config.n_abstract == 3 and config.n_samples == PlanningConfig().n_samples
+
+
+def test_environments_declare_learning_defaults_that_cli_settings_override():
+    from bpns.learning.config import LearningConfig, learning_config_for
+    from mj_envs.registry import make_env
+
+    assert learning_config_for(object()) == LearningConfig()
+    sb = make_env("stick_button")
+    assert learning_config_for(sb).near_goal_scale == 0.01
+    assert learning_config_for(sb).settle_steps == sb.contact_settle_steps
+    assert learning_config_for(sb, near_goal_scale=0.5, seed=None).near_goal_scale == 0.5

@@ -54,8 +54,9 @@ class LearningConfig:
     # ones in every segment (operators.anchor_parameters). False: the paper's operators.
     anchor_parameters: bool = True
     # Policies also see tanh(relative subgoal / this), in feature units (metres, radians):
-    # resolution near the subgoal, where demonstrators switch (policies.py). None: off.
-    near_goal_scale: float | None = 0.01
+    # resolution near the subgoal, where demonstrators switch (policies.py). None: off,
+    # as in the paper; domains whose demonstrators switch declare it (learning_defaults).
+    near_goal_scale: float | None = None
     # A scope dimension counts as "changing" when |final - initial| exceeds this in some
     # segment, and as static when its range over all the skill's states is within it.
     change_tolerance: float = 0.0
@@ -86,3 +87,13 @@ class LearningConfig:
             raise ValueError(f"near_goal_scale must be > 0, got {self.near_goal_scale}")
         if self.change_tolerance < 0.0:
             raise ValueError(f"change_tolerance must be >= 0, got {self.change_tolerance}")
+
+
+def learning_config_for(env: object, **overrides: object) -> LearningConfig:
+    """The environment's declared learning defaults with ``overrides`` (those not None)
+    on top: ``settle_steps`` from its ``contact_settle_steps``, then its optional
+    ``learning_defaults`` mapping of field names (e.g. ``{"near_goal_scale": 0.01}``)."""
+    fields: dict[str, object] = {"settle_steps": int(getattr(env, "contact_settle_steps", 1))}
+    fields.update(dict(getattr(env, "learning_defaults", {}) or {}))
+    fields.update({k: v for k, v in overrides.items() if v is not None})
+    return LearningConfig(**fields)  # type: ignore[arg-type]
