@@ -126,3 +126,4 @@ def test_environments_declare_learning_defaults_that_cli_settings_override():
     assert learning_config_for(sb).near_goal_scale == 0.01
     assert learning_config_for(sb).settle_steps == sb.contact_settle_steps
     assert learning_config_for(sb, near_goal_scale=0.5, seed=None).near_goal_scale == 0.5
+    assert learning_config_for(make_env("coffee")).near_goal_scale is None

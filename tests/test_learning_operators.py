@@ -46,6 +46,7 @@ def test_atoms_over_objects_outside_the_scope_are_discarded_without_anchoring():
     segs = [_pick_with(b, GroundAtom(ON, (b, B[1]))) for b in (B[0], B[2])]
     (dataset,) = learn_operators(partition_segments(segs), anchor=False)
     assert {str(a) for a in dataset.operator.preconditions} == {"HandEmpty(?robot0)"}
+    assert dataset.scope_size is None
 
 
 def test_an_object_related_to_the_parameters_in_every_segment_becomes_a_parameter():
@@ -59,6 +60,7 @@ def test_an_object_related_to_the_parameters_in_every_segment_becomes_a_paramete
     assert [v.name for v in op.parameters] == ["?block0", "?robot0", "?block1"]
     assert {str(a) for a in op.preconditions} == {"HandEmpty(?robot0)", "On(?block0, ?block1)"}
     assert dataset.bindings == ((B[0], R, B[1]), (B[2], R, B[3]))
+    assert dataset.scope_size == 2  # the skill's networks see the affected objects only
 
 
 def test_anchoring_needs_the_relation_in_every_segment_and_one_object_each():

@@ -75,6 +75,22 @@ def test_near_goal_policy_round_trips_and_matches_its_training_inputs():
     assert LearnedPolicy.from_arrays(old).near_scale is None  # skills saved before it
 
 
+def test_a_policy_sees_only_its_scope_objects_of_a_longer_binding(point_policy):
+    import dataclasses
+
+    scoped = LearnedPolicy(
+        dataclasses.replace(point_policy.dims, num_objects=1), point_policy.params
+    )
+    other = toy.Object("other", toy.POINT)
+    state = toy.State({toy.POINT_OBJ: np.array([0.3, -0.2]), other: np.array([9.0, 9.0])})
+    goal = np.array([0.5, 0.5])
+    np.testing.assert_array_equal(
+        scoped(state, (toy.POINT_OBJ, other), goal), point_policy(state, (toy.POINT_OBJ,), goal)
+    )
+    assert LearnedPolicy.from_arrays(scoped.to_arrays()).dims.num_objects == 1
+    assert LearnedPolicy.from_arrays(point_policy.to_arrays()).dims.num_objects is None
+
+
 def test_near_goal_scale_must_be_positive():
     with pytest.raises(ValueError, match="near_goal_scale"):
         LearningConfig(near_goal_scale=0.0)

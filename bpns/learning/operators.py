@@ -32,13 +32,16 @@ from bpns.structs import (
 class SkillDataset:
     """A learned operator with the segments it was induced from.
 
-    ``bindings[i]`` are the objects of ``segments[i]`` in the operator's parameter order:
-    the skill scope used for that segment by policy and sampler learning.
+    ``bindings[i]`` are the objects of ``segments[i]`` in the operator's parameter order;
+    the first ``scope_size`` of them (None: all) are the skill's scope, used by policy
+    and sampler learning. Anchored parameters come after the scope: they strengthen the
+    operator's preconditions but the skill's networks never see them.
     """
 
     operator: STRIPSOperator
     segments: tuple[Segment, ...]
     bindings: tuple[tuple[Object, ...], ...]
+    scope_size: int | None = None
 
     def __len__(self) -> int:
         return len(self.segments)
@@ -71,8 +74,10 @@ def anchor_parameters(group: SegmentGroup) -> SegmentGroup:
     object; the most common such patterns are taken one at a time (first by predicate
     name, argument position and variables), so a chain (a pot on the plate, the plate a
     parameter) is followed too. Unary atoms of outside objects never anchor: they would
-    only make the skill's scope larger. The new parameters then take part in precondition
-    induction and in the skill's scope like any other.
+    add a parameter the operator does not relate to anything. The new parameters take
+    part in precondition induction; the skill's scope stays the affected objects (see
+    ``SkillDataset.scope_size``): Coffee's button press with the pot in its scope had to
+    predict the pot's features in its subgoals and planned slower.
     """
     params = list(group.parameters)
     subs = [dict(s) for s in group.substitutions]
@@ -142,8 +147,11 @@ def learn_operators(
     kept.sort(key=lambda ig: (-len(ig[1]), ig[0]))
     datasets = []
     for k, (_, group) in enumerate(kept):
+        scope_size = None
         if anchor:
-            group = anchor_parameters(group)
+            anchored = anchor_parameters(group)
+            if anchored is not group:
+                scope_size, group = len(group.parameters), anchored
         op = STRIPSOperator(
             name=f"Op{k}",
             parameters=group.parameters,
@@ -153,7 +161,7 @@ def learn_operators(
         )
         inverses = (_inverse(sub) for sub in group.substitutions)
         bindings = tuple(tuple(inv[v] for v in group.parameters) for inv in inverses)
-        datasets.append(SkillDataset(op, group.segments, bindings))
+        datasets.append(SkillDataset(op, group.segments, bindings, scope_size))
     return datasets
 
 

@@ -151,7 +151,7 @@ def learn_skills(
         say(f"training {dataset.operator.name} ({k + 1}/{len(datasets)}, {len(dataset)} segments)")
         with timer.stage("policies"):
             scopes = scope_trajectories(dataset)
-            dims = ScopeDims.from_scopes(scopes, config.change_tolerance)
+            dims = ScopeDims.from_scopes(scopes, config.change_tolerance, dataset.scope_size)
             policy = learn_policy(
                 dataset, config, derive_seed(config.seed, k, _POLICY), scopes, dims
             )

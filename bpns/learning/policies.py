@@ -34,14 +34,22 @@ class ScopeDims:
     ``state_dims``: dims not constant over every state of the skill's data (the others
     carry no information). ``subgoal_dims``: dims where a segment's final scope differs
     from its initial scope in at least one segment (the only ones a subgoal sets).
+    ``num_objects``: how many leading operator objects form the scope (None: all); an
+    operator's anchored parameters come last and are symbolic only.
     """
 
     size: int
     state_dims: np.ndarray
     subgoal_dims: np.ndarray
+    num_objects: int | None = None
+
+    def scope(self, objects: Sequence[Object]) -> Sequence[Object]:
+        return objects if self.num_objects is None else objects[: self.num_objects]
 
     @classmethod
-    def from_scopes(cls, scopes: Sequence[np.ndarray], tolerance: float = 0.0) -> ScopeDims:
+    def from_scopes(
+        cls, scopes: Sequence[np.ndarray], tolerance: float = 0.0, num_objects: int | None = None
+    ) -> ScopeDims:
         """``scopes[i]`` is the (steps + 1, size) scope trajectory of segment i."""
         if not scopes:
             raise ValueError("no segments to compute scope dimensions from")
@@ -52,6 +60,7 @@ class ScopeDims:
             size=allrows.shape[1],
             state_dims=np.flatnonzero(spread > tolerance),
             subgoal_dims=np.flatnonzero(change > tolerance),
+            num_objects=num_objects,
         )
 
     def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
@@ -59,21 +68,26 @@ class ScopeDims:
             f"{prefix}size": np.array(self.size),
             f"{prefix}state_dims": self.state_dims,
             f"{prefix}subgoal_dims": self.subgoal_dims,
+            f"{prefix}num_objects": np.array(-1 if self.num_objects is None else self.num_objects),
         }
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str = "") -> ScopeDims:
+        num = int(arrays.get(f"{prefix}num_objects", -1))  # absent in older skills
         return cls(
             size=int(arrays[f"{prefix}size"]),
             state_dims=np.array(arrays[f"{prefix}state_dims"], dtype=np.int64),
             subgoal_dims=np.array(arrays[f"{prefix}subgoal_dims"], dtype=np.int64),
+            num_objects=None if num < 0 else num,
         )
 
 
 def scope_trajectories(dataset: SkillDataset) -> list[np.ndarray]:
-    """Scope vectors of every state of every segment, one (steps + 1, size) array each."""
+    """Scope vectors of every state of every segment, one (steps + 1, size) array each
+    (the scope: the first ``dataset.scope_size`` parameters' objects)."""
+    k = dataset.scope_size
     return [
-        np.stack([s.vec(objs) for s in seg.states])
+        np.stack([s.vec(objs[:k]) for s in seg.states])
         for seg, objs in zip(dataset.segments, dataset.bindings, strict=True)
     ]
 
@@ -121,7 +135,7 @@ class LearnedPolicy:
         self._sd, self._gd = dims.state_dims, dims.subgoal_dims
 
     def __call__(self, state: State, objects: Sequence[Object], subgoal: np.ndarray) -> np.ndarray:
-        x = state.vec(objects)
+        x = state.vec(self.dims.scope(objects))
         if x.shape[0] != self.dims.size:
             raise ValueError(
                 f"scope has {x.shape[0]} features, the policy expects {self.dims.size}"
@@ -179,7 +193,8 @@ def learn_policy(
     """Behaviour-clone one skill's policy; pass precomputed ``scopes``/``dims`` to share
     them with sampler learning."""
     scopes = scope_trajectories(dataset) if scopes is None else scopes
-    dims = ScopeDims.from_scopes(scopes, config.change_tolerance) if dims is None else dims
+    if dims is None:
+        dims = ScopeDims.from_scopes(scopes, config.change_tolerance, dataset.scope_size)
     actions = [seg.actions for seg in dataset.segments]
     return train_policy(
         scopes, actions, dims, config.policy, seed, config.use_subgoals, config.near_goal_scale

@@ -53,7 +53,7 @@ class LearnedSampler:
         self._cls = None if classifier is None else BinaryClassifier(classifier)
 
     def _start(self, state: State, objects: Sequence[Object]) -> np.ndarray:
-        x = state.vec(objects)
+        x = state.vec(self.dims.scope(objects))
         if x.shape[0] != self.dims.size:
             raise ValueError(
                 f"scope has {x.shape[0]} features, the sampler expects {self.dims.size}"
@@ -135,7 +135,8 @@ class CurrentStateSampler:
 
 
 def _row(start: State, end: State, objects: Sequence[Object], dims: ScopeDims) -> np.ndarray:
-    s0, s1 = start.vec(objects), end.vec(objects)
+    scope = dims.scope(objects)
+    s0, s1 = start.vec(scope), end.vec(scope)
     return np.concatenate((s0[dims.state_dims], (s1 - s0)[dims.subgoal_dims]))
 
 
@@ -235,7 +236,8 @@ def learn_sampler(
     """Learn one skill's sampler. ``other_segments``: every segment not in ``dataset``
     (negatives of kind (b))."""
     scopes = scope_trajectories(dataset) if scopes is None else scopes
-    dims = ScopeDims.from_scopes(scopes, config.change_tolerance) if dims is None else dims
+    if dims is None:
+        dims = ScopeDims.from_scopes(scopes, config.change_tolerance, dataset.scope_size)
     gen_x, gen_y, cls_data = sampler_training_data(
         dataset, scopes, dims, other_segments, config.max_negative_bindings_per_segment, seed
     )
