@@ -29,11 +29,15 @@ from mj_envs.coffee import (
     POT_ON_PLATE,
     POUR_TILT,
     TWISTING,
+    WRIST_LIMITS,
 )
 from mj_envs.coffee_oracle import (
     SAFE_Z,
+    TWIST_ABOVE,
+    TWIST_TARGET,
     grasp_phases,
     handle_grasp,
+    knob_wrist,
     needs_twist,
     pick_phases,
     place_phases,
@@ -252,6 +256,22 @@ def test_the_demonstrator_solves_train_and_eval_tasks_including_a_twist(env, dem
     robot, pot = _obj(twisted.states[0], "robot"), _obj(twisted.states[0], "pot")
     assert any(TWISTING.holds(x, (robot, pot)) for x in twisted.states)
     assert abs(twisted.states[-1].get(pot, "rotation")) <= HANDLE_RULE
+
+
+def test_the_knob_grasp_is_one_continuous_rule_per_side_within_the_wrist_range():
+    """A learned grasp sampler fits one mode only if the demonstrator's grasp angle is a
+    continuous function of the pot's rotation on each side (no jumps between face pairs)."""
+    for side in (-1.0, 1.0):
+        rotations = side * np.linspace(TWIST_ABOVE, np.deg2rad(120.0), 200)
+        for target in (side * TWIST_TARGET[0], side * TWIST_TARGET[1]):
+            grasps = np.array([knob_wrist(r, target) for r in rotations])
+            faces = np.mod(grasps - rotations, np.pi / 2)
+            assert np.allclose(np.minimum(faces, np.pi / 2 - faces), 0.0, atol=1e-9)
+            assert np.max(np.abs(np.diff(grasps))) < 0.01  # no jump to another face pair
+            turned = grasps + (target - rotations)
+            # a quarter of the turn may slip in the fingers: still inside the limit
+            slipped = turned + 0.25 * (target - rotations)
+            assert np.all(np.abs(np.concatenate([grasps, slipped])) < WRIST_LIMITS[1])
 
 
 def test_a_saved_demo_replays_bit_exactly(tmp_path, env, demos):
