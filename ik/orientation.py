@@ -24,14 +24,21 @@ Quaternions are (w, x, y, z), as in MuJoCo and mink.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 Z_AXIS = np.array([0.0, 0.0, 1.0])
 
+# These run several times per control step (features and commands), so they work on
+# Python floats: numpy's per-call overhead on 3-vectors cost more than the maths.
+
 
 def quat_to_mat(q: np.ndarray) -> np.ndarray:
     """Rotation matrix of a (w, x, y, z) quaternion (normalised first)."""
-    w, x, y, z = np.asarray(q, dtype=np.float64) / np.linalg.norm(q)
+    w, x, y, z = (float(v) for v in q)
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w / n, x / n, y / n, z / n
     return np.array(
         [
             [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
@@ -42,42 +49,50 @@ def quat_to_mat(q: np.ndarray) -> np.ndarray:
 
 
 def axis_angle_mat(axis: np.ndarray, angle: float) -> np.ndarray:
-    """Rodrigues: rotation by ``angle`` about the unit vector ``axis``."""
-    a = np.asarray(axis, dtype=np.float64)
-    k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+    r"""Rodrigues: rotation by ``angle`` about the unit vector ``axis``,
+    :math:`\cos\theta\, I + \sin\theta\, [a]_\times + (1 - \cos\theta)\, a a^T`."""
+    x, y, z = (float(v) for v in axis)
+    c, s = math.cos(angle), math.sin(angle)
+    t = 1.0 - c
+    return np.array(
+        [
+            [t * x * x + c, t * x * y - s * z, t * x * z + s * y],
+            [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
+            [t * x * z - s * y, t * y * z + s * x, t * z * z + c],
+        ]
+    )
 
 
 def mat_to_rotvec(r: np.ndarray) -> np.ndarray:
     """Logarithm of a rotation matrix as a rotation vector (angle * axis)."""
-    cos = float(np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0))
-    angle = float(np.arccos(cos))
+    cos = min(max((float(r[0, 0] + r[1, 1] + r[2, 2]) - 1.0) / 2.0, -1.0), 1.0)
+    angle = math.acos(cos)
     v = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
     if angle < 1e-9:
         return v / 2.0
-    if np.pi - angle < 1e-6:  # near pi: axis from the symmetric part
+    if math.pi - angle < 1e-6:  # near pi: axis from the symmetric part
         axis = np.sqrt(np.maximum((np.diag(r) + 1.0) / 2.0, 0.0))
         i = int(np.argmax(axis))
         axis[:] = (r[:, i] + r[i, :]) / 2.0
         axis[i] = np.sqrt(max((r[i, i] + 1.0) / 2.0, 0.0))
         axis /= np.linalg.norm(axis)
         return angle * axis
-    return angle * v / (2.0 * np.sin(angle))
+    return angle * v / (2.0 * math.sin(angle))
 
 
-def _horizontal_unit(axis: np.ndarray) -> np.ndarray:
-    a = np.asarray(axis, dtype=np.float64)
-    a = a - a[2] * Z_AXIS
-    n = float(np.linalg.norm(a))
+def _horizontal_unit(axis: np.ndarray) -> tuple[float, float]:
+    """(x, y) of ``axis`` projected on the horizontal plane and normalised."""
+    x, y = float(axis[0]), float(axis[1])
+    n = math.hypot(x, y)
     if n < 1e-9:
         raise ValueError("the tilt axis must not be vertical")
-    return a / n
+    return x / n, y / n
 
 
 def yaw_tilt_matrix(yaw: float, tilt: float, base: np.ndarray, tilt_axis: np.ndarray) -> np.ndarray:
     """:math:`R_z(\\psi) R_a(\\tau) R_0` for base rotation matrix ``base``."""
-    a = _horizontal_unit(tilt_axis)
-    return axis_angle_mat(Z_AXIS, yaw) @ axis_angle_mat(a, tilt) @ base
+    ax, ay = _horizontal_unit(tilt_axis)
+    return axis_angle_mat((0.0, 0.0, 1.0), yaw) @ axis_angle_mat((ax, ay, 0.0), tilt) @ base
 
 
 def yaw_tilt(quat: np.ndarray, base_quat: np.ndarray, tilt_axis: np.ndarray) -> tuple[float, float]:
@@ -92,15 +107,18 @@ def yaw_tilt(quat: np.ndarray, base_quat: np.ndarray, tilt_axis: np.ndarray) -> 
 def yaw_tilt_from_matrix(
     r: np.ndarray, base: np.ndarray, tilt_axis: np.ndarray
 ) -> tuple[float, float]:
-    a = _horizontal_unit(tilt_axis)
-    rel = r @ base.T  # = Rz(yaw) Ra(tilt): it maps a to Rz(yaw) a
-    ra = rel @ a
-    yaw = float(np.arctan2(a[0] * ra[1] - a[1] * ra[0], a[0] * ra[0] + a[1] * ra[1]))
-    tilt_rot = axis_angle_mat(Z_AXIS, -yaw) @ rel  # = Ra(tilt)
-    # the tilt turns z about a: angle of Ra z around a
-    rz = tilt_rot @ Z_AXIS
-    b = np.cross(a, Z_AXIS)  # Ra(tilt) z = cos(tilt) z + sin(tilt) (a x z)
-    tilt = float(np.arctan2(float(rz @ b), float(rz @ Z_AXIS)))
+    r"""(yaw, tilt) of rotation matrix ``r`` relative to ``base`` (see :func:`yaw_tilt`).
+
+    With :math:`M = R R_0^T = R_z(\psi) R_a(\tau)`: :math:`M a = R_z(\psi) a` gives the
+    yaw, and :math:`R_z(-\psi) M e_z = \cos\tau\, e_z + \sin\tau\, (a \times e_z)` the
+    tilt, where :math:`a \times e_z = (a_y, -a_x, 0)` for a horizontal :math:`a`."""
+    ax, ay = _horizontal_unit(tilt_axis)
+    (m00, m01, m02), (m10, m11, m12), (_, _, m22) = (r @ base.T).tolist()
+    ra_x, ra_y = m00 * ax + m01 * ay, m10 * ax + m11 * ay
+    yaw = math.atan2(ax * ra_y - ay * ra_x, ax * ra_x + ay * ra_y)
+    c, s = math.cos(yaw), math.sin(yaw)
+    rz_x, rz_y = c * m02 + s * m12, -s * m02 + c * m12
+    tilt = math.atan2(rz_x * ay - rz_y * ax, m22)
     return yaw, tilt
 
 
@@ -122,8 +140,8 @@ def rotation_delta(
     base = quat_to_mat(base_quat)
     r = quat_to_mat(quat)
     yaw, tilt = yaw_tilt_from_matrix(r, base, tilt_axis)
-    new_yaw = float(np.clip(yaw + dyaw, *yaw_limits))
-    new_tilt = float(np.clip(tilt + dtilt, *tilt_limits))
+    new_yaw = min(max(yaw + float(dyaw), yaw_limits[0]), yaw_limits[1])
+    new_tilt = min(max(tilt + float(dtilt), tilt_limits[0]), tilt_limits[1])
     if new_yaw == yaw and new_tilt == tilt:
         return np.zeros(3)
     target = yaw_tilt_matrix(new_yaw, new_tilt, base, tilt_axis)
