@@ -54,6 +54,12 @@ def learn_args(p: argparse.ArgumentParser) -> None:
         "in the paper (default: the environment's, else off)",
     )
     p.add_argument(
+        "--input-margin",
+        type=_tolerance_or_off,
+        help="networks clip their inputs into the training range widened by this fraction "
+        "of it (default 0.1), or 'off' as in the paper",
+    )
+    p.add_argument(
         "--no-anchor",
         action="store_true",
         help="operator parameters = affected objects only, as in the paper (no anchored "
@@ -108,6 +114,15 @@ def cmd_learn(args: argparse.Namespace) -> int:
     if args.near_goal_scale is not None:
         near = None if args.near_goal_scale == "off" else args.near_goal_scale
         config = dataclasses.replace(config, near_goal_scale=near)
+    if args.input_margin is not None:
+        margin = None if args.input_margin == "off" else args.input_margin
+        config = dataclasses.replace(
+            config,
+            **{
+                name: dataclasses.replace(getattr(config, name), input_margin=margin)
+                for name in ("policy", "generator", "classifier")
+            },
+        )
     quiet = not sys.stderr.isatty() and os.environ.get("BPNS_PROGRESS") != "1"
 
     def report(message: str) -> None:

@@ -114,6 +114,7 @@ def _cli(*args: str, cwd=None) -> subprocess.CompletedProcess:
         (("learn", "missing.h5", "--out", "sk"), "no such demonstration file"),
         (("learn", "d.h5", "--out", "sk", "--near-goal-scale", "0"), "must be > 0 or 'off'"),
         (("learn", "d.h5", "--out", "sk", "--near-goal-scale", "x"), "--near-goal-scale"),
+        (("learn", "d.h5", "--out", "sk", "--input-margin", "-1"), "--input-margin"),
         (("skills", "show", "nowhere"), "not a skills directory"),
         (("eval", "--approach", "oracle"), "pass --env (or --skills)"),
         (("eval", "--env", "cover"), "learned approaches need --skills"),
@@ -143,6 +144,10 @@ def test_learning_settings_come_from_the_environment_unless_given(run_dir, tmp_p
     assert given["near_goal_scale"] == 0.02 and given["anchor_parameters"] is False
     assert given["settle_steps"] == 2
     assert learned_config("--near-goal-scale", "off")["near_goal_scale"] is None
+    nets = ("policy", "generator", "classifier")
+    assert all(cover[n]["input_margin"] == 0.1 for n in nets)
+    assert all(learned_config("--input-margin", "0.3")[n]["input_margin"] == 0.3 for n in nets)
+    assert all(learned_config("--input-margin", "off")[n]["input_margin"] is None for n in nets)
 
 
 def test_a_damaged_skills_directory_is_reported_not_raised(run_dir, tmp_path):

@@ -156,3 +156,29 @@ def test_non_finite_inputs_propagate():
     params = mlp.train_regressor(*_data(), FAST, seed=0)
     out = mlp.Regressor(params)(np.array([np.nan, 0.0, 0.0, 0.0, 0.0]))
     assert not np.isfinite(out).all()
+
+
+def test_inputs_are_clipped_into_the_widened_training_box_when_a_margin_is_set():
+    x, y = _data()
+    x[:, 2] = 7.0  # constant in the data: the network never saw this column move
+    boxed = mlp.train_regressor(x, y, MLPConfig(num_steps=200, input_margin=0.1), seed=0)
+    free = mlp.train_regressor(x, y, MLPConfig(num_steps=200), seed=0)
+    assert free.input_low is None and free.input_high is None
+    span = x.max(axis=0) - x.min(axis=0)
+    np.testing.assert_allclose(boxed.input_low, x.min(axis=0) - 0.1 * span)
+    np.testing.assert_allclose(boxed.input_high, x.max(axis=0) + 0.1 * span)
+
+    drifted = x[:3].copy()
+    drifted[:, 2] += 0.5  # far outside: clipped back to the constant
+    np.testing.assert_array_equal(mlp.Regressor(boxed)(drifted), mlp.Regressor(boxed)(x[:3]))
+    assert not np.allclose(mlp.Regressor(free)(drifted), mlp.Regressor(free)(x[:3]))
+    inside = x[:3].copy()
+    inside[:, 0] = x[:, 0].max() + 0.05 * span[0]  # within the margin: seen as is
+    np.testing.assert_allclose(mlp.Regressor(boxed)(inside), mlp.Regressor(free)(inside))
+
+    ref = mlp.torch_reference(boxed, drifted) * boxed.output_std + boxed.output_mean
+    np.testing.assert_allclose(mlp.Regressor(boxed)(drifted), ref, atol=1e-6)
+    back = mlp.MLPParams.from_arrays(boxed.to_arrays("p/"), "p/")
+    assert back.identical(boxed)
+    with pytest.raises(ValueError, match="input_margin"):
+        MLPConfig(input_margin=-0.1)

@@ -43,6 +43,9 @@ class MLPParams:
     input_std: np.ndarray
     output_mean: np.ndarray
     output_std: np.ndarray
+    # Inputs are clipped into [input_low, input_high] before the first layer (None: not).
+    input_low: np.ndarray | None = None
+    input_high: np.ndarray | None = None
 
     @property
     def input_dim(self) -> int:
@@ -59,6 +62,9 @@ class MLPParams:
             f"{prefix}output_mean": self.output_mean,
             f"{prefix}output_std": self.output_std,
         }
+        if self.input_low is not None and self.input_high is not None:
+            out[f"{prefix}input_low"] = self.input_low
+            out[f"{prefix}input_high"] = self.input_high
         for k, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
             out[f"{prefix}w{k}"] = w
             out[f"{prefix}b{k}"] = b
@@ -72,6 +78,7 @@ class MLPParams:
         if n == 0:
             raise KeyError(f"no network weights with prefix {prefix!r}")
         get = lambda key: np.array(arrays[f"{prefix}{key}"], dtype=np.float64)  # noqa: E731
+        boxed = f"{prefix}input_low" in arrays and f"{prefix}input_high" in arrays
         return cls(
             weights=tuple(get(f"w{k}") for k in range(n)),
             biases=tuple(get(f"b{k}") for k in range(n)),
@@ -79,6 +86,8 @@ class MLPParams:
             input_std=get("input_std"),
             output_mean=get("output_mean"),
             output_std=get("output_std"),
+            input_low=get("input_low") if boxed else None,
+            input_high=get("input_high") if boxed else None,
         )
 
     def identical(self, other: MLPParams) -> bool:
@@ -100,6 +109,24 @@ def standardisation(data: np.ndarray, std_floor: float) -> tuple[np.ndarray, np.
     mean = data.mean(axis=0)
     std = np.maximum(data.std(axis=0), std_floor)
     return mean.astype(np.float64), std.astype(np.float64)
+
+
+def input_box(
+    data: np.ndarray, margin: float | None
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The training inputs' per-column range widened by ``margin`` times its span on each
+    side (None: no box).
+
+    Inference clips inputs into it. A column that was constant in the data (a wrist that
+    every demonstration held at 0 while pressing a button) then stays at its constant:
+    the network never saw it vary, and a 5 deg drift, 9 floored standard deviations,
+    would otherwise be extrapolated into a wild output. A column that varied may still
+    step a little outside its range, by the margin."""
+    if margin is None:
+        return None, None
+    low, high = data.min(axis=0), data.max(axis=0)
+    span = (high - low) * margin
+    return (low - span).astype(np.float64), (high + span).astype(np.float64)
 
 
 def _layers(in_dim: int, hidden: tuple[int, ...], out_dim: int) -> torch.nn.ModuleList:
@@ -326,7 +353,7 @@ def train_regressor(
     out_mean, out_std = standardisation(targets, config.std_floor)
     x, y = (inputs - in_mean) / in_std, (targets - out_mean) / out_std
     w, b = _fit(x, y, targets.shape[1], MSELoss(), config, seed)
-    return MLPParams(w, b, in_mean, in_std, out_mean, out_std)
+    return MLPParams(w, b, in_mean, in_std, out_mean, out_std, *input_box(inputs, config.input_margin))
 
 
 def train_gaussian(
@@ -338,7 +365,7 @@ def train_gaussian(
     out_mean, out_std = standardisation(targets, config.std_floor)
     x, y = (inputs - in_mean) / in_std, (targets - out_mean) / out_std
     w, b = _fit(x, y, 2 * targets.shape[1], GaussianNLLLoss(), config, seed)
-    return MLPParams(w, b, in_mean, in_std, out_mean, out_std)
+    return MLPParams(w, b, in_mean, in_std, out_mean, out_std, *input_box(inputs, config.input_margin))
 
 
 def train_classifier(
@@ -357,7 +384,8 @@ def train_classifier(
     in_mean, in_std = standardisation(inputs, config.std_floor)
     x = (inputs - in_mean) / in_std
     w, b = _fit(x, labels, 1, WeightedBCELoss(n_neg / n_pos), config, seed)
-    return MLPParams(w, b, in_mean, in_std, np.zeros(1), np.ones(1))
+    low, high = input_box(inputs, config.input_margin)
+    return MLPParams(w, b, in_mean, in_std, np.zeros(1), np.ones(1), low, high)
 
 
 def torch_reference(params: MLPParams, inputs: np.ndarray) -> np.ndarray:
@@ -372,9 +400,10 @@ def torch_reference(params: MLPParams, inputs: np.ndarray) -> np.ndarray:
         for layer, w, b in zip(layers, params.weights, params.biases, strict=True):
             layer.weight.copy_(torch.from_numpy(w.T))
             layer.bias.copy_(torch.from_numpy(b))
-        x = (
-            torch.from_numpy(_as_2d(inputs)) - torch.from_numpy(params.input_mean)
-        ) / torch.from_numpy(params.input_std)
+        x = torch.from_numpy(_as_2d(inputs))
+        if params.input_low is not None and params.input_high is not None:
+            x = torch.clamp(x, torch.from_numpy(params.input_low), torch.from_numpy(params.input_high))
+        x = (x - torch.from_numpy(params.input_mean)) / torch.from_numpy(params.input_std)
         return _torch_forward(layers, x).numpy()
 
 
@@ -382,7 +411,8 @@ def torch_reference(params: MLPParams, inputs: np.ndarray) -> np.ndarray:
 
 
 class _NumpyNet:
-    """ReLU MLP in numpy with input standardisation folded into the first layer."""
+    """ReLU MLP in numpy with input standardisation folded into the first layer (inputs
+    clipped into the params' input box first, if they have one)."""
 
     def __init__(self, params: MLPParams, fold_output: bool) -> None:
         ws = [np.array(w, dtype=np.float64) for w in params.weights]
@@ -398,11 +428,16 @@ class _NumpyNet:
         )
         self._w_out = np.ascontiguousarray(ws[-1])
         self._b_out = bs[-1]
+        self._box = (
+            None
+            if params.input_low is None or params.input_high is None
+            else (params.input_low, params.input_high)
+        )
         self.params = params
 
     def forward(self, x: np.ndarray) -> np.ndarray:
         """One input vector or a batch (rows); returns a fresh array."""
-        h = x
+        h = x if self._box is None else np.minimum(np.maximum(x, self._box[0]), self._box[1])
         for w, b in self._hidden:
             h = h @ w
             h += b
