@@ -353,7 +353,9 @@ def train_regressor(
     out_mean, out_std = standardisation(targets, config.std_floor)
     x, y = (inputs - in_mean) / in_std, (targets - out_mean) / out_std
     w, b = _fit(x, y, targets.shape[1], MSELoss(), config, seed)
-    return MLPParams(w, b, in_mean, in_std, out_mean, out_std, *input_box(inputs, config.input_margin))
+    return MLPParams(
+        w, b, in_mean, in_std, out_mean, out_std, *input_box(inputs, config.input_margin)
+    )
 
 
 def train_gaussian(
@@ -365,7 +367,9 @@ def train_gaussian(
     out_mean, out_std = standardisation(targets, config.std_floor)
     x, y = (inputs - in_mean) / in_std, (targets - out_mean) / out_std
     w, b = _fit(x, y, 2 * targets.shape[1], GaussianNLLLoss(), config, seed)
-    return MLPParams(w, b, in_mean, in_std, out_mean, out_std, *input_box(inputs, config.input_margin))
+    return MLPParams(
+        w, b, in_mean, in_std, out_mean, out_std, *input_box(inputs, config.input_margin)
+    )
 
 
 def train_classifier(
@@ -402,7 +406,9 @@ def torch_reference(params: MLPParams, inputs: np.ndarray) -> np.ndarray:
             layer.bias.copy_(torch.from_numpy(b))
         x = torch.from_numpy(_as_2d(inputs))
         if params.input_low is not None and params.input_high is not None:
-            x = torch.clamp(x, torch.from_numpy(params.input_low), torch.from_numpy(params.input_high))
+            x = torch.clamp(
+                x, torch.from_numpy(params.input_low), torch.from_numpy(params.input_high)
+            )
         x = (x - torch.from_numpy(params.input_mean)) / torch.from_numpy(params.input_std)
         return _torch_forward(layers, x).numpy()
 
