@@ -109,6 +109,7 @@ def main() -> None:
             f"--timeout {args.timeout:g}",
             *(["--ablations"] if args.ablations else []),
             *(["--bench"] if args.bench else []),
+            *(["--reuse"] if args.reuse else []),
         ]
     )
     lines = [
