@@ -1,8 +1,9 @@
 """Find environments by name through the ``bpns.environments`` entry-point group.
 
 bpns never imports a domain: packages declare theirs in their metadata, e.g.
-``[project.entry-points."bpns.environments"] cover = "mj_envs.cover:CoverEnv"``,
-which is also how a user plugs in an environment built on their own MJCF.
+``[project.entry-points."bpns.environments"] cover = "mj_envs.domains.cover.env:CoverEnv"``,
+which is also how a user plugs in an environment built on their own MJCF. The entry
+points are the single source of environment names (CLI, workers, Gymnasium ids).
 """
 
 from __future__ import annotations

@@ -1,12 +1,12 @@
-"""MuJoCo domains for BPNS: scenes, features, contact predicates, tasks, oracles.
+"""MuJoCo domains for BPNS: generic machinery, robots, parts, oracles and domain packages.
 
-Importing this package registers the Gymnasium ids ``bpns/<Name>-v0``.
+Importing this package registers a Gymnasium id ``bpns/<Name>-v0`` for every environment
+in the ``bpns.environments`` entry points (``mj_envs.gym_wrapper.gym_id``).
 """
 
 from mj_envs import gl as _gl  # noqa: F401  (must run before mujoco is imported)
-from mj_envs.gym_wrapper import register_gymnasium_envs  # noqa: E402
-from mj_envs.registry import ENVIRONMENTS, make_env  # noqa: E402
+from mj_envs.gym_wrapper import gym_id, register_gymnasium_envs  # noqa: E402
 
 register_gymnasium_envs()
 
-__all__ = ["ENVIRONMENTS", "make_env"]
+__all__ = ["gym_id", "register_gymnasium_envs"]

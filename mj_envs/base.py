@@ -18,6 +18,7 @@ import numpy as np
 
 from bpns.structs import GroundAtom, Object, Predicate, SimState, State, Task, Type
 from ik import ControllerConfig
+from mj_envs.render import render_states
 from mj_envs.world import POSE_SLICE, World
 
 
@@ -192,8 +193,6 @@ class MujocoEnv(abc.ABC):
     def render(
         self, states: Sequence[State], camera: str = "overview", width: int = 640, height: int = 480
     ):
-        from mj_envs.render import render_states
-
         return render_states(states, camera, width, height, decorate=self.decorate)
 
     # -- persistence ------------------------------------------------------------------

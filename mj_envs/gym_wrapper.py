@@ -1,4 +1,9 @@
-"""Gymnasium view of a domain: ``gymnasium.make("bpns/Cover-v0")``.
+"""Gymnasium view of every registered environment: ``gymnasium.make("bpns/Cover-v0")``.
+
+Gymnasium ids come from the one registry of environments, the ``bpns.environments``
+entry points: ``stick_button`` is ``bpns/StickButton-v0``, and a plugin package's
+environment gets its id the same way (``import mj_envs`` registers them all, or use
+``gymnasium.make("mj_envs:bpns/Name-v0")``).
 
 Observation: every object's features concatenated in a fixed order, zero-padded to the
 domain's ``max_objects`` so its size is the same for every task. Reward 1 when the goal
@@ -15,14 +20,17 @@ import gymnasium as gym
 import numpy as np
 
 from bpns.abstraction import abstract
+from bpns.environment import Environment
+from bpns.registry import environment_names, make_environment
 from bpns.structs import State, Task
-from mj_envs.base import MujocoEnv
 
-GYM_IDS = {
-    "cover": "bpns/Cover-v0",
-    "stick_button": "bpns/StickButton-v0",
-    "coffee": "bpns/Coffee-v0",
-}
+NAMESPACE = "bpns"
+
+
+def gym_id(env_name: str) -> str:
+    """``stick_button`` -> ``bpns/StickButton-v0``."""
+    camel = "".join(part[:1].upper() + part[1:] for part in env_name.split("_"))
+    return f"{NAMESPACE}/{camel}-v0"
 
 
 class BPNSGymEnv(gym.Env):
@@ -35,9 +43,7 @@ class BPNSGymEnv(gym.Env):
         render_mode: str | None = None,
         camera: str = "overview",
     ) -> None:
-        from mj_envs.registry import make_env
-
-        self.env: MujocoEnv = make_env(env_name)
+        self.env: Environment = make_environment(env_name)
         self.train = train
         self.render_mode = render_mode
         self.camera = camera
@@ -95,9 +101,14 @@ class BPNSGymEnv(gym.Env):
         return next(iter(self.env.render([self._state], self.camera)))
 
 
-def register_gymnasium_envs() -> None:
-    for name, gym_id in GYM_IDS.items():
-        if gym_id not in gym.registry:
+def register_gymnasium_envs() -> list[str]:
+    """Register a Gymnasium id for every environment in the registry; returns the ids."""
+    ids = []
+    for name in environment_names():
+        id_ = gym_id(name)
+        if id_ not in gym.registry:
             gym.register(
-                id=gym_id, entry_point="mj_envs.gym_wrapper:BPNSGymEnv", kwargs={"env_name": name}
+                id=id_, entry_point="mj_envs.gym_wrapper:BPNSGymEnv", kwargs={"env_name": name}
             )
+        ids.append(id_)
+    return ids

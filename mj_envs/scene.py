@@ -7,33 +7,33 @@ and objects contype=1/conaffinity=3, decorations (targets, regions) contype=0.
 
 from __future__ import annotations
 
-import functools
-from pathlib import Path
-
 from dm_control import mjcf
 
 from mj_envs import gl as _gl  # noqa: F401
+from mj_envs.robots.panda import PANDA, Robot, robot_mjcf_text
+from mj_envs.world import DOMAIN_USERDATA_START
 
-ASSETS_DIR = Path(__file__).resolve().parent.parent / "assets"
 TABLE_SIZE = (0.5, 0.65, 0.025)  # half extents
 TABLE_CENTER_X = 0.45
 OBJECT_CONTYPE, OBJECT_CONAFFINITY = 1, 3
 
 
-@functools.lru_cache(maxsize=1)
-def _panda_xml() -> str:
-    return (ASSETS_DIR / "panda.xml").read_text()
+def make_arena(
+    model_name: str, domain_userdata: int = 0, timestep: float = 0.002, robot: Robot = PANDA
+) -> mjcf.RootElement:
+    """An arena with physics settings that hold grasps, a table, lights, cameras and the
+    robot attached under its prefix.
 
-
-def make_arena(model_name: str, nuserdata: int, timestep: float = 0.002) -> mjcf.RootElement:
-    """An arena with physics settings that hold grasps, a table, lights and cameras."""
+    ``domain_userdata`` slots follow the controller's in ``data.userdata`` (from
+    ``DOMAIN_USERDATA_START``): domain state that must be saved with the simulator state.
+    """
     arena = mjcf.RootElement(model=model_name)
     opt = arena.option
     opt.timestep = timestep
     opt.integrator = "implicitfast"
     opt.cone = "elliptic"
     opt.impratio = 10
-    arena.size.nuserdata = nuserdata
+    arena.size.nuserdata = DOMAIN_USERDATA_START + domain_userdata
     arena.visual.headlight.ambient = (0.35, 0.35, 0.35)
     arena.visual.headlight.diffuse = (0.5, 0.5, 0.5)
     getattr(arena.visual, "global").offwidth = 1280
@@ -98,7 +98,7 @@ def make_arena(model_name: str, nuserdata: int, timestep: float = 0.002) -> mjcf
     )
     wb.add("camera", name="front", pos=(1.6, 0.0, 0.55), mode="targetbody", target=focus, fovy=40)
     wb.add("camera", name="top", pos=(0.5, 0.0, 1.6), quat=(0.7071068, 0, 0, 0.7071068), fovy=45)
-    arena.attach(mjcf.from_xml_string(_panda_xml(), model_dir=str(ASSETS_DIR)))
+    arena.attach(mjcf.from_xml_string(robot_mjcf_text(robot), model_dir=str(robot.mjcf.parent)))
     return arena
 
 

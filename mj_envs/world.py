@@ -18,10 +18,10 @@ import mujoco
 import numpy as np
 
 from ik import ControllerConfig, EndEffectorController
+from mj_envs.robots.panda import PANDA, Robot, ik_model
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
-ROBOT_PREFIX = "panda/"
-# userdata layout: [0:7] commanded gripper pose, [7:] free for the domain.
+# userdata layout: [0:7] the controller's commanded gripper pose, [7:] free for the domain.
 POSE_SLICE = slice(0, 7)
 DOMAIN_USERDATA_START = 7
 
@@ -33,7 +33,7 @@ class MjcfError(ValueError):
 class World:
     """Compiled scene + scratch MjData + controller bound to the scene's robot."""
 
-    def __init__(self, xml: str, controller_config: ControllerConfig) -> None:
+    def __init__(self, xml: str, controller_config: ControllerConfig, robot: Robot = PANDA) -> None:
         try:
             self.model = mujoco.MjModel.from_xml_string(xml)
         except ValueError as err:
@@ -41,18 +41,21 @@ class World:
         self.xml = xml
         self.key = hashlib.sha1(xml.encode()).hexdigest()[:16]
         self.data = mujoco.MjData(self.model)
-        self.controller = EndEffectorController(_robot_ik_model(), controller_config)
-        self.controller.bind(self.model, prefix=ROBOT_PREFIX)
+        self.robot = robot
+        self.controller = EndEffectorController(ik_model(robot), controller_config)
+        self.controller.bind(self.model, prefix=robot.prefix)
         self.state_size = mujoco.mj_stateSize(self.model, STATE_SPEC)
         self.substeps = max(1, round(controller_config.control_dt / self.model.opt.timestep))
         self.cache: dict[str, Any] = {}  # the domain's per-scene lookups (ids, slices)
 
     @staticmethod
-    def from_xml(xml: str, controller_config: ControllerConfig | None = None) -> World:
-        return _cached_world(xml, controller_config or ControllerConfig())
+    def from_xml(
+        xml: str, controller_config: ControllerConfig | None = None, robot: Robot = PANDA
+    ) -> World:
+        return _cached_world(xml, controller_config or ControllerConfig(), robot)
 
     def __reduce__(self):
-        return (World.from_xml, (self.xml, self.controller.config))
+        return (World.from_xml, (self.xml, self.controller.config, self.robot))
 
     def __repr__(self) -> str:
         return f"World({self.key})"
@@ -80,12 +83,5 @@ class World:
 
 
 @functools.lru_cache(maxsize=64)
-def _cached_world(xml: str, controller_config: ControllerConfig) -> World:
-    return World(xml, controller_config)
-
-
-@functools.lru_cache(maxsize=1)
-def _robot_ik_model() -> mujoco.MjModel:
-    from mj_envs.scene import ASSETS_DIR
-
-    return mujoco.MjModel.from_xml_path(str(ASSETS_DIR / "panda.xml"))
+def _cached_world(xml: str, controller_config: ControllerConfig, robot: Robot) -> World:
+    return World(xml, controller_config, robot)

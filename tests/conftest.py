@@ -7,7 +7,7 @@ import pytest
 
 import mj_envs  # noqa: F401  (selects the GL backend before mujoco loads)
 from bpns.demos import run_demonstrator
-from mj_envs.registry import make_env
+from bpns.registry import make_environment as make_env
 
 
 @pytest.fixture(scope="session")

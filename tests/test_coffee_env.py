@@ -12,9 +12,23 @@ import pytest
 from bpns.abstraction import abstract
 from bpns.datasets import load_demonstrations, save_demonstrations
 from bpns.demos import replay, run_demonstrator
+from bpns.registry import make_environment as make_env
 from bpns.structs import Object, State, Task
 from mj_envs.base import InvalidActionError
-from mj_envs.coffee import (
+from mj_envs.domains.coffee.behaviours import (
+    SAFE_Z,
+    TWIST_ABOVE,
+    TWIST_TARGET,
+    grasp_phases,
+    handle_grasp,
+    knob_wrist,
+    needs_twist,
+    pick_phases,
+    place_phases,
+    pour_phases,
+    press_phases,
+)
+from mj_envs.domains.coffee.rules import (
     BUTTON_PRESSED,
     CUP,
     CUP_FILLED,
@@ -31,20 +45,6 @@ from mj_envs.coffee import (
     TWISTING,
     WRIST_LIMITS,
 )
-from mj_envs.coffee_oracle import (
-    SAFE_Z,
-    TWIST_ABOVE,
-    TWIST_TARGET,
-    grasp_phases,
-    handle_grasp,
-    knob_wrist,
-    needs_twist,
-    pick_phases,
-    place_phases,
-    pour_phases,
-    press_phases,
-)
-from mj_envs.registry import make_env
 
 
 @pytest.fixture(scope="module")
@@ -298,7 +298,7 @@ def test_coffee_gym_env_passes_check_env():
 
 def test_oracle_skills_solve_an_eval_task_needing_a_twist_through_the_planner(env):
     from bpns.planning.bilevel import plan
-    from mj_envs.coffee_skills import PLANNING_CONFIG
+    from mj_envs.domains.coffee.skills import PLANNING_CONFIG
 
     task = _task_with(
         env, False, lambda t: len(t.goal) >= 2 and _rotation(t) > HANDLE_RULE + 0.2, seed=1

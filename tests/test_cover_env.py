@@ -9,7 +9,7 @@ import pytest
 
 from bpns.abstraction import abstract
 from mj_envs.base import InvalidActionError
-from mj_envs.cover import HOLDING
+from mj_envs.domains.cover.rules import HOLDING
 
 
 def test_simulate_is_bit_identical_for_the_same_state_and_action(cover_env, rng):

@@ -6,10 +6,12 @@ import pickle
 
 import pytest
 
-from mj_envs.registry import ENVIRONMENTS, make_env
+import mj_envs  # noqa: F401  (selects the GL backend before mujoco loads)
+from bpns.registry import environment_names
+from bpns.registry import make_environment as make_env
 
 
-@pytest.mark.parametrize("name", sorted(ENVIRONMENTS))
+@pytest.mark.parametrize("name", environment_names())
 def test_tasks_and_states_pickle_so_worker_processes_can_receive_them(name):
     env = make_env(name)
     task = env.eval_tasks(1, seed=0)[0]

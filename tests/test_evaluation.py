@@ -119,7 +119,7 @@ def test_environments_declare_planning_defaults_that_cli_settings_override():
 
 def test_environments_declare_learning_defaults_that_cli_settings_override():
     from bpns.learning.config import LearningConfig, learning_config_for
-    from mj_envs.registry import make_env
+    from bpns.registry import make_environment as make_env
 
     assert learning_config_for(object()) == LearningConfig()
     sb = make_env("stick_button")

@@ -11,26 +11,19 @@ from bpns.abstraction import abstract
 from bpns.datasets import load_demonstrations, save_demonstrations
 from bpns.demos import replay, run_demonstrator
 from bpns.planning.bilevel import plan
+from bpns.registry import make_environment as make_env
 from bpns.structs import Object, State, Task
-from mj_envs.registry import make_env
-from mj_envs.stick_button import (
-    BUTTON,
-    CAP_RADIUS,
-    GRASPED,
-    LATCH_DEPTH,
-    PRESSED,
-    PRESSED_RGBA,
-    STICK_HEIGHT,
-)
-from mj_envs.stick_button_oracle import (
+from mj_envs.domains.stick_button.behaviours import (
     FINGER_REACH,
-    FINGERTIP_DROP,
     GRASP_MIN,
     SAFE_Z,
     grasp_point,
     move_action,
 )
-from mj_envs.stick_button_skills import APPROACH_CLEARANCE, PLANNING_CONFIG
+from mj_envs.domains.stick_button.rules import BUTTON, GRASPED, PRESSED, STICK_HEIGHT
+from mj_envs.domains.stick_button.skills import APPROACH_CLEARANCE, PLANNING_CONFIG
+from mj_envs.parts.button import CAP_RADIUS, LATCH_DEPTH, PRESSED_RGBA
+from mj_envs.robots.panda import FINGERTIP_DROP
 
 
 @pytest.fixture(scope="module")

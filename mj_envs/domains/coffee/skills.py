@@ -30,32 +30,7 @@ import numpy as np
 
 from bpns.planning.config import PlanningConfig
 from bpns.structs import LiftedAtom, Object, Skill, State, STRIPSOperator, Variable
-from mj_envs.coffee import (
-    BUTTON_PRESSED,
-    CUP,
-    CUP_FILLED,
-    FINGERTIP_DROP,
-    HAND_EMPTY,
-    HANDLE_RULE,
-    HANDLE_Z,
-    HOLDING,
-    KNOB_Z,
-    NOT_ABOVE_CUP,
-    ON_TABLE,
-    PLATE,
-    PLATE_TOP,
-    POT,
-    POT_ABOVE_CUP,
-    POT_HOT,
-    POT_ON_PLATE,
-    POUR_TILT,
-    ROBOT,
-    ROBOT_ABOVE_CUP,
-    TWISTING,
-    WRIST_LIMITS,
-    pot_above_cup,
-)
-from mj_envs.coffee_oracle import (
+from mj_envs.domains.coffee.behaviours import (
     APPROACH_CLEARANCE,
     FREE_Z,
     POS_TOL,
@@ -79,6 +54,31 @@ from mj_envs.coffee_oracle import (
     spout,
     spout_height,
     wrap,
+)
+from mj_envs.domains.coffee.rules import (
+    BUTTON_PRESSED,
+    CUP,
+    CUP_FILLED,
+    FINGERTIP_DROP,
+    HAND_EMPTY,
+    HANDLE_RULE,
+    HANDLE_Z,
+    HOLDING,
+    KNOB_Z,
+    NOT_ABOVE_CUP,
+    ON_TABLE,
+    PLATE,
+    PLATE_TOP,
+    POT,
+    POT_ABOVE_CUP,
+    POT_HOT,
+    POT_ON_PLATE,
+    POUR_TILT,
+    ROBOT,
+    ROBOT_ABOVE_CUP,
+    TWISTING,
+    WRIST_LIMITS,
+    pot_above_cup,
 )
 
 # Scope vector layout: the robot's features come first in every operator, the pot next.

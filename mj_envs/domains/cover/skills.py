@@ -13,7 +13,13 @@ from collections.abc import Sequence
 import numpy as np
 
 from bpns.structs import LiftedAtom, Object, Skill, State, STRIPSOperator, Variable
-from mj_envs.cover import (
+from mj_envs.domains.cover.behaviours import (
+    PAD_CLEARANCE,
+    pick_action,
+    place_action,
+    release_hand_y,
+)
+from mj_envs.domains.cover.rules import (
     BLOCK,
     COVERS,
     HAND_EMPTY,
@@ -22,12 +28,6 @@ from mj_envs.cover import (
     IS_TARGET,
     ROBOT,
     TARGET,
-)
-from mj_envs.cover_oracle import (
-    PAD_CLEARANCE,
-    pick_action,
-    place_action,
-    release_hand_y,
 )
 
 _R, _B, _T = Variable("?robot", ROBOT), Variable("?block", BLOCK), Variable("?target", TARGET)

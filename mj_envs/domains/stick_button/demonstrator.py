@@ -1,201 +1,25 @@
 """Scripted Stick Button demonstrator: closed-loop on features, acting only through actions.
 
-First every unpressed button within the fingertips' reach is pressed with the closed
-fingers (in a random order). If buttons remain, the stick is picked up by its free part, at a
-grasp point drawn so that the tip reaches every remaining button with the hand inside
-its comfortable reach (grasping nearer the holder reaches further), and each remaining
-button is pressed with the tip. A press moves the pusher (fingertips or tip, whose offset
-from the hand is re-measured every step) above the cap and lowers it toward a point 11 mm
-below the cap's rest top, slowing to 6 mm per step in the last 6 cm, until the joint
-reading says Pressed.
+Buttons within the fingertips' reach are pressed by hand in a random order; if buttons
+remain, the stick is picked at a grasp point from which its tip reaches all of them, and
+each is pressed with the tip (behaviours in :mod:`.behaviours`, shared with the oracle
+skills).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from bpns.structs import Object, State, Task
-from mj_envs.phases import DemonstrationFailed, Phase, PhasedDemonstrator
-from mj_envs.stick_button import (
-    BUTTON,
-    CAP_REST_TOP,
-    HOLDER_LENGTH,
-    ROBOT,
-    STICK,
-    STICK_LENGTH,
-    TIP_INSET,
+from bpns.structs import State, Task
+from mj_envs.domains.stick_button.behaviours import (
+    MAX_PHASE_STEPS,
+    pick_phases,
+    press_phases,
+    reachable_by_hand,
+    sample_grasp_offset,
 )
-
-SAFE_Z = 0.15  # hand height for travel: the held stick clears every cap
-GAIN = 0.7
-POS_TOL = 0.003
-FINGERTIP_DROP = 0.012  # closed fingertips' lowest point below the gripper centre
-PRESS_DEPTH = 0.011  # the pusher aims this far below the cap's rest top (latch: 8 mm)
-FINGER_REACH = 0.80  # buttons closer than this (xy, from the base) are pressed by hand
-HAND_REACH = 0.76  # where the hand may go while pressing with the stick
-GRASP_Z_ABOVE_CENTRE = 0.005
-GRASP_MIN = HOLDER_LENGTH + 0.018  # grasp offsets from the back end: the free part only
-GRASP_MAX = STICK_LENGTH - 0.04
-TIP_FROM_BACK = STICK_LENGTH - TIP_INSET
-SLOW_ZONE, SLOW_STEP = 0.06, 0.006  # last 6 cm of a descent at <= 6 mm per step
-MAX_PRESS_STEPS = 80
-MAX_CLOSE_STEPS = 20
-EXTRA_CLOSE_STEPS = 3
-MAX_PHASE_STEPS = 150
-
-
-def move_action(state: State, robot: Object, goal_xyz: np.ndarray, grip: float) -> np.ndarray:
-    """Proportional step toward ``goal_xyz``; the gain < 1 absorbs the arm's tracking lag."""
-    return np.array([*(GAIN * (goal_xyz - state.data[robot][:3])), grip])
-
-
-def slow_near(state: State, robot: Object, goal_xyz: np.ndarray, grip: float) -> np.ndarray:
-    """Like :func:`move_action`, but at most ``SLOW_STEP`` per step in z close to the goal.
-
-    The arm lags its command, so a full-speed descent overshoots by several millimetres:
-    enough to put the fingertips on the table.
-    """
-    action = move_action(state, robot, goal_xyz, grip)
-    if state.get(robot, "z") - goal_xyz[2] < SLOW_ZONE:
-        action[2] = max(action[2], -SLOW_STEP)
-    return action
-
-
-def at(state: State, robot: Object, goal_xyz: np.ndarray, tol: float = POS_TOL) -> bool:
-    return bool(np.all(np.abs(state.data[robot][:3] - goal_xyz) <= tol))
-
-
-def reachable_by_hand(state: State, button: Object) -> bool:
-    return float(np.hypot(state.get(button, "x"), state.get(button, "y"))) <= FINGER_REACH
-
-
-def pusher(state: State, robot: Object, stick: Object | None) -> np.ndarray:
-    """Lowest point that presses: the closed fingertips, or the held stick's tip."""
-    if stick is None:
-        return state.data[robot][:3] - np.array([0.0, 0.0, FINGERTIP_DROP])
-    return np.array(
-        [state.get(stick, "tip_x"), state.get(stick, "tip_y"), state.get(stick, "tip_z")]
-    )
-
-
-def hand_goal_for_pusher(
-    state: State, robot: Object, stick: Object | None, pusher_goal: np.ndarray
-) -> np.ndarray:
-    """Hand position that puts the pusher at ``pusher_goal`` (offset measured now)."""
-    return state.data[robot][:3] + pusher_goal - pusher(state, robot, stick)
-
-
-def stick_axis(state: State, stick: Object) -> tuple[np.ndarray, np.ndarray]:
-    """(back end xy, unit direction toward the tip) of the stick, from its features."""
-    centre = np.array([state.get(stick, "x"), state.get(stick, "y")])
-    tip = np.array([state.get(stick, "tip_x"), state.get(stick, "tip_y")])
-    axis = (tip - centre) / max(float(np.linalg.norm(tip - centre)), 1e-9)
-    return centre - axis * STICK_LENGTH / 2, axis
-
-
-def grasp_limit_for(state: State, buttons: list[Object]) -> float:
-    """Largest grasp offset (from the back end) whose tip reaches every button in ``buttons``.
-
-    With the stick along +x the hand sits ``TIP_FROM_BACK - g`` behind the button; that
-    point must lie within ``HAND_REACH`` of the base.
-    """
-    limit = GRASP_MAX
-    for b in buttons:
-        bx, by = state.get(b, "x"), state.get(b, "y")
-        if abs(by) >= HAND_REACH:
-            return -np.inf
-        limit = min(limit, TIP_FROM_BACK - bx + float(np.sqrt(HAND_REACH**2 - by**2)))
-    return limit
-
-
-def sample_grasp_offset(state: State, buttons: list[Object], rng: np.random.Generator) -> float:
-    hi = grasp_limit_for(state, buttons)
-    if hi < GRASP_MIN:
-        raise DemonstrationFailed("no grasp on the stick's free part reaches every button")
-    return float(rng.uniform(GRASP_MIN, hi))
-
-
-def grasp_point(state: State, stick: Object, offset: float) -> np.ndarray:
-    back, axis = stick_axis(state, stick)
-    xy = back + axis * offset
-    return np.array([xy[0], xy[1], state.get(stick, "z") + GRASP_Z_ABOVE_CENTRE])
-
-
-def press_phases(robot: Object, button: Object, stick: Object | None, grip: float) -> list[Phase]:
-    """Rise, travel above ``button``, then lower the pusher in one proportional descent
-    (slowed near the cap) toward a point below the latch depth until the cap latches.
-
-    One smooth descent rather than "stop above the cap, then push at 3 mm per step": a
-    cloned policy learns it well, whereas the stop-then-creep switch taught skills to
-    hover a centimetre above the cap."""
-    count = {"press": 0}
-
-    def target_xy(s: State) -> np.ndarray:
-        return np.array([s.get(button, "x"), s.get(button, "y")])
-
-    def rise(s: State) -> np.ndarray | None:
-        goal = np.array([s.get(robot, "x"), s.get(robot, "y"), SAFE_Z])
-        return None if at(s, robot, goal, 0.01) else move_action(s, robot, goal, grip)
-
-    def travel(s: State) -> np.ndarray | None:
-        goal = hand_goal_for_pusher(s, robot, stick, np.array([*target_xy(s), 0.0]))
-        goal[2] = SAFE_Z
-        return None if at(s, robot, goal, 2 * POS_TOL) else move_action(s, robot, goal, grip)
-
-    def press(s: State) -> np.ndarray | None:
-        if s.get(button, "pressed") > 0.5:
-            return None
-        count["press"] += 1
-        if count["press"] > MAX_PRESS_STEPS:
-            raise DemonstrationFailed(f"could not press {button.name}")
-        z = CAP_REST_TOP - PRESS_DEPTH
-        goal = hand_goal_for_pusher(s, robot, stick, np.array([*target_xy(s), z]))
-        return slow_near(s, robot, goal, grip)
-
-    return [rise, travel, press, rise]
-
-
-def pick_phases(robot: Object, stick: Object, offset: float) -> list[Phase]:
-    """Open and rise, go above the grasp point, descend, close until both pads touch, lift."""
-    closing = {"steps": 0, "extra": 0}
-
-    def rise(s: State) -> np.ndarray | None:
-        goal = np.array([s.get(robot, "x"), s.get(robot, "y"), SAFE_Z])
-        return None if at(s, robot, goal, 0.01) else move_action(s, robot, goal, 1.0)
-
-    def travel(s: State) -> np.ndarray | None:
-        goal = grasp_point(s, stick, offset)
-        goal[2] = SAFE_Z
-        return None if at(s, robot, goal, 2 * POS_TOL) else move_action(s, robot, goal, 1.0)
-
-    def descend(s: State) -> np.ndarray | None:
-        goal = grasp_point(s, stick, offset)
-        if at(s, robot, goal) and s.get(robot, "fingers") > 0.035:
-            return None
-        return slow_near(s, robot, goal, 1.0)
-
-    def close(s: State) -> np.ndarray | None:
-        closing["steps"] += 1
-        if closing["steps"] > MAX_CLOSE_STEPS:
-            raise DemonstrationFailed(f"could not grasp {stick.name}")
-        if s.get(stick, "grasped") > 0.5:
-            closing["extra"] += 1
-            if closing["extra"] > EXTRA_CLOSE_STEPS:
-                return None
-        return move_action(s, robot, grasp_point(s, stick, offset), -1.0)
-
-    def lift(s: State) -> np.ndarray | None:
-        if s.get(stick, "grasped") < 0.5:
-            raise DemonstrationFailed(f"dropped {stick.name}")
-        goal = np.array([s.get(robot, "x"), s.get(robot, "y"), SAFE_Z])
-        if at(s, robot, goal, 0.01):
-            return None
-        action = move_action(s, robot, goal, -1.0)
-        if s.get(robot, "z") < SAFE_Z / 2:  # ease the stick out of the holder
-            action[2] = min(action[2], SLOW_STEP)
-        return action
-
-    return [rise, travel, descend, close, lift]
+from mj_envs.domains.stick_button.rules import BUTTON, ROBOT, STICK
+from mj_envs.oracles.phases import DemonstrationFailed, Phase, PhasedDemonstrator
 
 
 class StickButtonDemonstrator(PhasedDemonstrator):
@@ -234,7 +58,3 @@ class StickButtonDemonstrator(PhasedDemonstrator):
             raise DemonstrationFailed(f"lost {self.stick.name}")
         b = todo[int(self.rng.integers(len(todo)))]
         return press_phases(self.robot, b, self.stick, grip=-1.0)
-
-
-def demonstrator(task: Task, rng: np.random.Generator) -> StickButtonDemonstrator:
-    return StickButtonDemonstrator(task, rng)

@@ -23,19 +23,7 @@ import numpy as np
 
 from bpns.planning.config import PlanningConfig
 from bpns.structs import LiftedAtom, Object, Skill, State, STRIPSOperator, Variable
-from mj_envs.stick_button import (
-    ABOVE_NO_BUTTON,
-    BUTTON,
-    GRASPED,
-    HAND_EMPTY,
-    PRESSED,
-    ROBOT,
-    ROBOT_ABOVE_BUTTON,
-    STICK,
-    STICK_ABOVE_BUTTON,
-    STICK_HEIGHT,
-)
-from mj_envs.stick_button_oracle import (
+from mj_envs.domains.stick_button.behaviours import (
     FINGER_REACH,
     GRASP_MAX,
     GRASP_MIN,
@@ -49,6 +37,18 @@ from mj_envs.stick_button_oracle import (
     pusher,
     slow_near,
     stick_axis,
+)
+from mj_envs.domains.stick_button.rules import (
+    ABOVE_NO_BUTTON,
+    BUTTON,
+    GRASPED,
+    HAND_EMPTY,
+    PRESSED,
+    ROBOT,
+    ROBOT_ABOVE_BUTTON,
+    STICK,
+    STICK_ABOVE_BUTTON,
+    STICK_HEIGHT,
 )
 
 APPROACH_CLEARANCE = 0.008  # pusher height above the cap before the slow push

@@ -1,0 +1,1 @@
+"""Stick Button: press every button, the far ones with a stick (paper App. A.3)."""

@@ -1,0 +1,1 @@
+"""What scripted demonstrators and oracle skills share: the phase runner and motion primitives."""

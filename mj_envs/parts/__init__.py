@@ -1,0 +1,1 @@
+"""Reusable scene parts: a latching push button, free rigid objects and their placement."""

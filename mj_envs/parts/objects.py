@@ -1,0 +1,64 @@
+"""Free rigid objects and where to put them: builders shared by the domains.
+
+A free object is a body with a free joint and one collision geom, named ``name``,
+``name_joint`` and ``name_geom`` (features read the geom, e.g. ``name_geom``'s position).
+Its friction and ``condim`` 4 (torsional friction) let the finger pads hold it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from dm_control import mjcf
+
+from mj_envs.scene import OBJECT_CONAFFINITY, OBJECT_CONTYPE
+
+GRIPPABLE_FRICTION = (1.0, 0.02, 0.001)
+
+
+def add_free_box(
+    parent: mjcf.Element,
+    name: str,
+    pos: Sequence[float],
+    half_size: Sequence[float],
+    mass: float,
+    rgba: Sequence[float],
+    friction: Sequence[float] = GRIPPABLE_FRICTION,
+) -> mjcf.Element:
+    """A free box the robot can grasp; returns its body."""
+    body = parent.add("body", name=name, pos=tuple(pos))
+    body.add("freejoint", name=f"{name}_joint")
+    body.add(
+        "geom",
+        name=f"{name}_geom",
+        type="box",
+        size=tuple(half_size),
+        mass=mass,
+        rgba=tuple(rgba),
+        contype=OBJECT_CONTYPE,
+        conaffinity=OBJECT_CONAFFINITY,
+        friction=tuple(friction),
+        condim=4,
+    )
+    return body
+
+
+def sample_disjoint_intervals(
+    rng: np.random.Generator,
+    halves: Sequence[float],
+    span: tuple[float, float],
+    gap: float,
+    tries: int = 10_000,
+) -> list[float]:
+    """Centres for intervals of the given half-widths inside ``span``, pairwise apart by
+    at least ``gap`` (rejection sampling; raises if the span is too tight)."""
+    for _ in range(tries):
+        centres = [rng.uniform(span[0] + h, span[1] - h) for h in halves]
+        if all(
+            abs(centres[i] - centres[j]) >= halves[i] + halves[j] + gap
+            for i in range(len(halves))
+            for j in range(i + 1, len(halves))
+        ):
+            return centres
+    raise RuntimeError("could not place the objects without overlap; widen the span")

@@ -1,0 +1,148 @@
+"""The layering the architecture promises (docs/ARCHITECTURE.md), checked on the source.
+
+* No import cycles among the project's modules, counting imports inside functions too
+  (a lazy import that closes a cycle still ties the modules together).
+* ``bpns`` is environment-agnostic: it imports nothing from ``mj_envs``, ``ik`` or
+  ``mujoco``, and no ``bpns`` module names a domain.
+* Inside a domain package, the demonstrator and the oracle skills depend on the
+  environment side (rules, scene, behaviours), never the reverse.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ("bpns", "ik", "mj_envs")
+DOMAINS = ("cover", "stick_button", "coffee")
+
+
+def _modules() -> dict[str, Path]:
+    mods = {}
+    for pkg in PACKAGES:
+        for f in (ROOT / pkg).rglob("*.py"):
+            name = ".".join(f.relative_to(ROOT).with_suffix("").parts)
+            mods[name.removesuffix(".__init__")] = f
+    return mods
+
+
+def _imports(name: str, path: Path) -> set[str]:
+    """Every module name ``path`` imports, at any depth (relative imports resolved)."""
+    tree = ast.parse(path.read_text())
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    out: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join([*parts, base] if base else parts)
+            out.add(base)
+            out.update(f"{base}.{a.name}" for a in node.names)
+    return out
+
+
+def _project_edges() -> dict[str, set[str]]:
+    mods = _modules()
+
+    def resolve(target: str) -> str | None:
+        while target and target not in mods:
+            target = target.rpartition(".")[0]
+        return target or None
+
+    edges: dict[str, set[str]] = {}
+    for name, path in mods.items():
+        targets = {resolve(t) for t in _imports(name, path)}
+        # a module importing its own package (or the package its parent) is not a cycle
+        edges[name] = {t for t in targets if t and t != name and not name.startswith(t + ".")}
+    return edges
+
+
+def _cycles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan, iterative)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    out: list[list[str]] = []
+    counter = 0
+    for root in edges:
+        if root in index:
+            continue
+        work = [(root, iter(sorted(edges[root])))]
+        index[root] = low[root] = counter
+        counter += 1
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            v, it = work[-1]
+            w = next(it, None)
+            if w is None:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[v])
+                if low[v] == index[v]:
+                    comp = []
+                    while True:
+                        x = stack.pop()
+                        on_stack.discard(x)
+                        comp.append(x)
+                        if x == v:
+                            break
+                    if len(comp) > 1:
+                        out.append(sorted(comp))
+            elif w not in index:
+                index[w] = low[w] = counter
+                counter += 1
+                stack.append(w)
+                on_stack.add(w)
+                work.append((w, iter(sorted(edges.get(w, ())))))
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+    return out
+
+
+def test_no_module_imports_another_in_a_cycle_even_lazily():
+    assert _cycles(_project_edges()) == []
+
+
+def test_cycle_finder_finds_a_planted_cycle():
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def test_bpns_imports_no_simulator_robot_or_domain_code():
+    for name, path in _modules().items():
+        if not name.startswith("bpns"):
+            continue
+        bad = {t for t in _imports(name, path) if t.split(".")[0] in ("mj_envs", "ik", "mujoco")}
+        assert not bad, f"{name} imports {sorted(bad)}"
+        source = path.read_text()
+        for domain in DOMAINS:
+            assert f'"{domain}"' not in source and f"'{domain}'" not in source, (
+                f"{name} names the domain {domain!r}"
+            )
+
+
+@pytest.mark.parametrize("domain", DOMAINS)
+def test_domain_environment_side_never_imports_its_oracles(domain):
+    edges = _project_edges()
+    pkg = f"mj_envs.domains.{domain}"
+    oracles = {f"{pkg}.demonstrator", f"{pkg}.skills"}
+    for side in ("rules", "scene", "behaviours"):
+        assert not edges[f"{pkg}.{side}"] & oracles, f"{pkg}.{side} imports an oracle module"
+    assert f"{pkg}.env" not in edges[f"{pkg}.demonstrator"] | edges[f"{pkg}.skills"]
+
+
+def test_shared_machinery_imports_no_domain():
+    for name, targets in _project_edges().items():
+        if name.startswith(("mj_envs.robots", "mj_envs.parts", "mj_envs.oracles")) or name in (
+            "mj_envs.base",
+            "mj_envs.world",
+            "mj_envs.scene",
+        ):
+            assert not {t for t in targets if t.startswith("mj_envs.domains")}, name
