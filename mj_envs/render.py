@@ -1,4 +1,8 @@
-"""Offscreen rendering of states with MuJoCo's renderer (OSMesa when headless)."""
+"""Offscreen rendering of states with MuJoCo's renderer (OSMesa when headless).
+
+Frames are drawn from the scene's render model (:mod:`mj_envs.robots.panda_looks`: the
+same scene with the Panda's real link meshes), fed the simulated state; the simulated
+model itself never changes for looks."""
 
 from __future__ import annotations
 
@@ -10,7 +14,8 @@ import numpy as np
 
 from bpns.structs import State
 from mj_envs.gl import OSMESA_HINT, osmesa_available
-from mj_envs.world import World
+from mj_envs.robots.panda_looks import RenderModel, dressed_model
+from mj_envs.world import STATE_SPEC, World
 
 
 class RenderingUnavailable(RuntimeError):
@@ -42,8 +47,11 @@ def render_states(
     if camera not in {world.model.camera(i).name for i in range(world.model.ncam)}:
         names = sorted(world.model.camera(i).name for i in range(world.model.ncam))
         raise ValueError(f"no camera {camera!r} in this scene; cameras: {', '.join(names)}")
+    dressed = _render_model(world)
+    model = dressed.model if dressed is not None else world.model
+    data = mujoco.MjData(model) if dressed is not None else world.data
     try:
-        renderer = mujoco.Renderer(world.model, height=height, width=width)
+        renderer = mujoco.Renderer(model, height=height, width=width)
     except Exception as err:  # noqa: BLE001  (MuJoCo raises bare errors when GL is missing)
         raise RenderingUnavailable(
             f"could not start an OpenGL context ({err}); {OSMESA_HINT}"
@@ -56,7 +64,18 @@ def render_states(
             world.load(state.sim.flat)
             if decorate is not None:
                 decorate(world)
-            renderer.update_scene(world.data, camera=camera)
+            if dressed is not None:  # the looks decorate() set, and the state, carried over
+                model.geom_rgba[dressed.geom_ids] = world.model.geom_rgba
+                mujoco.mj_setState(model, data, state.sim.flat, STATE_SPEC)
+                mujoco.mj_forward(model, data)
+            renderer.update_scene(data, camera=camera)
             yield renderer.render().copy()
     finally:
         renderer.close()
+
+
+def _render_model(world: World) -> RenderModel | None:
+    """The scene's render model, built once per scene (None: draw the simulated model)."""
+    if "render_model" not in world.cache:
+        world.cache["render_model"] = dressed_model(world.model, world.xml, world.robot)
+    return world.cache["render_model"]

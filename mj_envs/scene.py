@@ -7,6 +7,7 @@ and objects contype=1/conaffinity=3, decorations (targets, regions) contype=0.
 
 from __future__ import annotations
 
+import numpy as np
 from dm_control import mjcf
 
 from mj_envs import gl as _gl  # noqa: F401
@@ -16,6 +17,8 @@ from mj_envs.world import DOMAIN_USERDATA_START
 TABLE_SIZE = (0.5, 0.65, 0.025)  # half extents
 TABLE_CENTER_X = 0.45
 OBJECT_CONTYPE, OBJECT_CONAFFINITY = 1, 3
+# the overview camera frames the whole arm (home posture reaches ~0.9 m) and the table top
+OVERVIEW_POS, OVERVIEW_TARGET = (1.4, -1.0, 0.95), (0.35, 0.0, 0.3)
 
 
 def make_arena(
@@ -94,12 +97,25 @@ def make_arena(
     )
     focus = wb.add("body", name="workspace_focus", pos=(0.45, 0.0, 0.12))
     wb.add(
-        "camera", name="overview", pos=(1.2, -0.8, 0.78), mode="targetbody", target=focus, fovy=45
+        "camera",
+        name="overview",
+        pos=OVERVIEW_POS,
+        xyaxes=look_at(OVERVIEW_POS, OVERVIEW_TARGET),
+        fovy=45,
     )
     wb.add("camera", name="front", pos=(1.6, 0.0, 0.55), mode="targetbody", target=focus, fovy=40)
     wb.add("camera", name="top", pos=(0.5, 0.0, 1.6), quat=(0.7071068, 0, 0, 0.7071068), fovy=45)
     arena.attach(mjcf.from_xml_string(robot_mjcf_text(robot), model_dir=str(robot.mjcf.parent)))
     return arena
+
+
+def look_at(pos: tuple[float, ...], target: tuple[float, ...]) -> tuple[float, ...]:
+    """A fixed camera's ``xyaxes`` looking from ``pos`` at ``target`` with +z up in the image."""
+    forward = np.subtract(target, pos) / np.linalg.norm(np.subtract(target, pos))
+    right = np.cross(forward, (0.0, 0.0, 1.0))
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    return tuple(round(float(v), 6) for v in (*right, *up))
 
 
 def to_xml(arena: mjcf.RootElement) -> str:

@@ -59,7 +59,6 @@ def sample_layout(rng: np.random.Generator, train: bool) -> TaskLayout:
     table.size = TABLE_HALF
     table.pos = (TABLE_CENTRE_X, 0.0, -TABLE_HALF[2])
     arena.worldbody.find("body", "workspace_focus").pos = (0.6, 0.0, 0.05)
-    arena.worldbody.find("camera", "overview").pos = (1.45, -1.05, 0.95)
     arena.worldbody.find("camera", "front").pos = (1.9, 0.0, 0.7)
     top = arena.worldbody.find("camera", "top")
     top.pos, top.fovy = (0.6, 0.0, 1.9), 50
