@@ -33,8 +33,10 @@ from bpns.structs import (
 )
 
 if TYPE_CHECKING:
+    from bpns.approaches import Approach, ApproachEntry, Solution, approach_names, get_approach
     from bpns.environment import Environment
     from bpns.evaluation import EvalSpec, evaluate
+    from bpns.failures import FailureReason
     from bpns.learning import LearnedSkills, LearningConfig, learn_skills
     from bpns.learning.artifacts import load_skills, save_skills
     from bpns.planning import PlanningConfig, PlanResult, plan
@@ -55,6 +57,12 @@ _LAZY = {
     "PlanningConfig": "bpns.planning",
     "evaluate": "bpns.evaluation",
     "EvalSpec": "bpns.evaluation",
+    "Approach": "bpns.approaches",
+    "ApproachEntry": "bpns.approaches",
+    "Solution": "bpns.approaches",
+    "get_approach": "bpns.approaches",
+    "approach_names": "bpns.approaches",
+    "FailureReason": "bpns.failures",
 }
 
 
@@ -72,6 +80,12 @@ def __dir__() -> list[str]:
 
 
 __all__ = [
+    "Approach",
+    "ApproachEntry",
+    "FailureReason",
+    "Solution",
+    "approach_names",
+    "get_approach",
     "Demonstration",
     "Environment",
     "EvalSpec",

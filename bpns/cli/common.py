@@ -158,14 +158,14 @@ def evaluate_approaches(
 ):
     """Evaluate each named approach in turn, printing its summary line as it finishes;
     the reports in the order named (the middle of ``bpns eval`` and of ``bpns run``)."""
-    from bpns.approaches import APPROACHES, SkillSource
-    from bpns.evaluation import EvalSpec, NoOracleSkillsError, evaluate
+    from bpns.approaches import NoOracleSkillsError, SkillSource, get_approach
+    from bpns.evaluation import EvalSpec, evaluate
     from bpns.reporting import solved_line
 
     stats = learned.stats if learned is not None else None
     reports = []
     for name in names:
-        approach = APPROACHES[name]
+        approach = get_approach(name)
         learned_approach = approach.skills is SkillSource.LEARNED
         spec = EvalSpec(
             env_name=env.name,

@@ -22,7 +22,7 @@ HELP = "solve held-out tasks by bilevel planning; results JSON + markdown table"
 
 
 def configure(p: argparse.ArgumentParser) -> None:
-    from bpns.approaches import APPROACHES
+    from bpns.approaches import approach_names
 
     p.add_argument("--env", help="environment (default: the one recorded in --skills)")
     p.add_argument("--skills", type=Path, help="skills directory (for learned approaches)")
@@ -30,7 +30,7 @@ def configure(p: argparse.ArgumentParser) -> None:
         "--approach",
         nargs="+",
         default=["bpns"],
-        choices=list(APPROACHES),
+        choices=approach_names(),
         help="approaches to evaluate, one table row each (default: bpns)",
     )
     p.add_argument("-n", "--tasks", type=positive, default=50, help="number of eval tasks")
@@ -67,11 +67,11 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpns.approaches import APPROACHES, SkillSource
+    from bpns.approaches import SkillSource, get_approach
     from bpns.planning.config import planning_config_for
 
     names = list(dict.fromkeys(args.approach))
-    approaches = [APPROACHES[a] for a in names]
+    approaches = [get_approach(a) for a in names]
     learned = None
     if any(a.skills is SkillSource.LEARNED for a in approaches):
         if args.skills is None:

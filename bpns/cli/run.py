@@ -25,7 +25,7 @@ REPLAY_CHECKED = 5  # demonstrations re-simulated to check the simulator is exac
 
 
 def configure(p: argparse.ArgumentParser) -> None:
-    from bpns.approaches import APPROACHES
+    from bpns.approaches import approach_names
 
     p.add_argument("--env", required=True, help="environment name (e.g. cover)")
     p.add_argument("--demos", type=positive, default=50, help="number of demonstrations")
@@ -38,7 +38,7 @@ def configure(p: argparse.ArgumentParser) -> None:
         "--approach",
         nargs="+",
         default=["bpns", "oracle"],
-        choices=list(APPROACHES),
+        choices=approach_names(),
         help="approaches to evaluate (default: bpns oracle)",
     )
 
