@@ -60,6 +60,11 @@ def configure(p: argparse.ArgumentParser) -> None:
         help="contact changes closer than this are one event "
         "(default: the environment's contact_settle_steps, else 1)",
     )
+    p.add_argument(
+        "--index-names",
+        action="store_true",
+        help="name operators Op0, Op1, ... as in the paper instead of after their effects",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     p.add_argument(
         "--threads",
@@ -88,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
         use_subgoals=False if args.no_subgoals else None,
         anchor_parameters=False if args.no_anchor else None,
         settle_steps=args.settle_steps,
+        index_names=True if args.index_names else None,
     )
     if args.near_goal_scale is not None:
         near = None if args.near_goal_scale == "off" else args.near_goal_scale
