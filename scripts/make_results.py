@@ -234,11 +234,12 @@ def learning_results(args, name: str) -> list[str]:
     rows, commands, learn_lines = [], [], []
     if not args.learn:  # the oracle skills alone
         ev = ["eval", "--env", args.env, "--approach", "oracle", "--out"]
-        bpns(*ev, str(work / "eval_oracle"), *eval_args)
+        bpns(*ev, str(work / "eval_oracle"), "--overwrite", *eval_args)
         commands.append(f"bpns {' '.join(ev)} {work}/eval_oracle ...")
         rows += (work / "eval_oracle" / "results.md").read_text().strip().splitlines()[2:]
     elif not (args.reuse and demos.exists()):
-        bpns("demos", "--env", args.env, "-n", str(args.demos), "--out", str(demos), *common)
+        demos_args = ["--env", args.env, "-n", str(args.demos), "--out", str(demos), "--overwrite"]
+        bpns("demos", *demos_args, *common)
     for i, n in enumerate(args.learn):
         skills = work / f"skills_{n}"
         learn = ["learn", str(demos), "--limit", str(n), "--out", str(skills), "--overwrite"]
@@ -248,7 +249,7 @@ def learning_results(args, name: str) -> list[str]:
         approaches += [a for a in args.approach if a not in approaches]
         approaches += ["oracle"] if i == 0 else []
         ev = ["eval", "--skills", str(skills), "--approach", *approaches, "--out"]
-        bpns(*ev, str(work / f"eval_{n}"), *eval_args)
+        bpns(*ev, str(work / f"eval_{n}"), "--overwrite", *eval_args)
         commands += [f"bpns {' '.join(learn)}", f"bpns {' '.join(ev)} {work}/eval_{n} ..."]
         reports = json.loads((work / f"eval_{n}" / "results.json").read_text())
         rows += (work / f"eval_{n}" / "results.md").read_text().strip().splitlines()[2:]

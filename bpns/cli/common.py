@@ -4,6 +4,7 @@ loading inputs as user errors, and the output of an evaluation (``eval`` and ``r
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 from pathlib import Path
@@ -32,6 +33,16 @@ def positive(text: str) -> int:
     return v
 
 
+def nonnegative(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {v}")
+    return v
+
+
 def nonnegative_float(text: str) -> float:
     try:
         v = float(text)
@@ -39,6 +50,8 @@ def nonnegative_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
     if not v >= 0.0:
         raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text}")
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text}")
     return v
 
 

@@ -12,11 +12,13 @@ from bpns.cli.common import (
     env_by_name,
     evaluate_approaches,
     learned_in,
+    nonnegative,
     positive,
     positive_float,
     report_evaluation,
     tolerance_or_off,
 )
+from bpns.cli.paths import capped_to_cores, check_eval_outputs
 
 HELP = "solve held-out tasks by bilevel planning; results JSON + markdown table"
 
@@ -34,8 +36,8 @@ def configure(p: argparse.ArgumentParser) -> None:
         help="approaches to evaluate, one table row each (default: bpns)",
     )
     p.add_argument("-n", "--tasks", type=positive, default=50, help="number of eval tasks")
-    p.add_argument("--seed", type=int, default=0, help="seed of the eval task stream")
-    p.add_argument("--planner-seed", type=int, default=0, help="seed of subgoal sampling")
+    p.add_argument("--seed", type=nonnegative, default=0, help="seed of the eval task stream")
+    p.add_argument("--planner-seed", type=nonnegative, default=0, help="seed of subgoal sampling")
     p.add_argument("--train", action="store_true", help="evaluate on train tasks instead")
     p.add_argument(
         "--timeout",
@@ -64,6 +66,9 @@ def configure(p: argparse.ArgumentParser) -> None:
         "the most skills",
     )
     p.add_argument("--no-validate", action="store_true", help="skip re-simulating plans")
+    p.add_argument(
+        "--overwrite", action="store_true", help="replace existing results and video files"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -72,13 +77,17 @@ def run(args: argparse.Namespace) -> int:
 
     names = list(dict.fromkeys(args.approach))
     approaches = [get_approach(a) for a in names]
+    check_eval_outputs(args.out, args.video, names, args.overwrite)
+    workers = capped_to_cores(args.workers, "--workers")
     learned = None
     if any(a.skills is SkillSource.LEARNED for a in approaches):
         if args.skills is None:
             raise UserError("learned approaches need --skills DIR (from `bpns learn`)")
         env, learned = learned_in(args.skills, args.env)
-    elif args.env is None:
+    elif args.env is None and args.skills is None:
         raise UserError("pass --env (or --skills) to say which environment to evaluate on")
+    elif args.env is None:
+        env, _ = learned_in(args.skills)  # the environment the skills record
     else:
         env = env_by_name(args.env)
     if any(a.skills is SkillSource.ORACLE for a in approaches) and not hasattr(
@@ -108,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
         args.planner_seed,
         args.train,
         not args.no_validate,
-        args.workers,
+        workers,
     )
     report_evaluation(env, reports, args.out, args.video, args.seed, args.train)
     return 0 if all(r.num_solved for r in reports) else 1

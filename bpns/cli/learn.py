@@ -9,6 +9,7 @@ from pathlib import Path
 from bpns.cli.common import (
     UserError,
     file_env,
+    nonnegative,
     nonnegative_float,
     positive,
     print_lines,
@@ -16,6 +17,7 @@ from bpns.cli.common import (
     stage_reporter,
     tolerance_or_off,
 )
+from bpns.cli.paths import capped_to_cores, check_skills_dir
 
 HELP = "learn neuro-symbolic skills from demonstrations"
 
@@ -24,7 +26,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("demos", type=Path, help="demonstration .h5 file (from `bpns demos`)")
     p.add_argument("--out", required=True, type=Path, help="skills directory to write")
     p.add_argument("--limit", type=positive, help="learn from the first N demos only")
-    p.add_argument("--seed", type=int, default=0, help="seed of all network training")
+    p.add_argument("--seed", type=nonnegative, default=0, help="seed of all network training")
     p.add_argument(
         "--min-segment-fraction",
         type=nonnegative_float,
@@ -79,13 +81,13 @@ def run(args: argparse.Namespace) -> int:
     from bpns.learning.config import learning_config_for
     from bpns.workflow import CannotLearnError, learn_to_directory
 
-    if args.out.exists() and not args.overwrite:
-        raise UserError(f"{args.out} exists; pass --overwrite to replace it")
+    check_skills_dir(args.out, "--out", args.overwrite, [args.demos])
     if args.min_segment_fraction > 1.0:
         raise UserError(f"--min-segment-fraction must be <= 1, got {args.min_segment_fraction}")
     if args.near_goal_scale == 0.0:
         raise UserError("--near-goal-scale must be > 0 or 'off', got 0")
     env = file_env(args.demos, None)
+    threads = capped_to_cores(args.threads, "--threads")
     config = learning_config_for(
         env,
         seed=args.seed,
@@ -109,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
         )
     try:
         learned = learn_to_directory(
-            env, args.demos, args.out, config, args.limit, args.threads, progress, stage_reporter()
+            env, args.demos, args.out, config, args.limit, threads, progress, stage_reporter()
         )
     except (DatasetError, CannotLearnError) as err:
         raise UserError(str(err)) from None

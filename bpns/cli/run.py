@@ -12,12 +12,20 @@ from bpns.cli.common import (
     env_by_name,
     evaluate_approaches,
     learned_in,
+    nonnegative,
     positive,
     positive_float,
     print_lines,
     progress,
     report_evaluation,
     stage_reporter,
+)
+from bpns.cli.paths import (
+    capped_to_cores,
+    check_eval_outputs,
+    check_output_dir,
+    check_output_file,
+    check_skills_dir,
 )
 
 HELP = "the whole pipeline: demos -> learn -> eval -> table -> video"
@@ -30,7 +38,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--env", required=True, help="environment name (e.g. cover)")
     p.add_argument("--demos", type=positive, default=50, help="number of demonstrations")
     p.add_argument("--tasks", type=positive, default=10, help="number of eval tasks")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=nonnegative, default=0)
     p.add_argument("--timeout", type=positive_float, default=60.0, help="seconds per task")
     p.add_argument("--out", type=Path, help="output directory (default: outputs/<env>)")
     p.add_argument("--workers", type=positive, default=default_workers())
@@ -40,6 +48,9 @@ def configure(p: argparse.ArgumentParser) -> None:
         default=["bpns", "oracle"],
         choices=approach_names(),
         help="approaches to evaluate (default: bpns oracle)",
+    )
+    p.add_argument(
+        "--overwrite", action="store_true", help="replace the outputs of an earlier run in --out"
     )
 
 
@@ -55,15 +66,21 @@ def run(args: argparse.Namespace) -> int:
 
     env = env_by_name(args.env)
     out: Path = args.out or Path("outputs") / env.name
-    out.mkdir(parents=True, exist_ok=True)
     demos_path, skills_dir = out / "demos.h5", out / "skills"
+    video = out / "eval_solved.mp4"
     names = list(dict.fromkeys(args.approach))
     if not hasattr(env, "oracle_skills") and "oracle" in names:
         names.remove("oracle")
+    check_output_dir(out, "--out")
+    check_output_file(demos_path, "--out", args.overwrite)
+    check_skills_dir(skills_dir, "--out", args.overwrite)
+    check_eval_outputs(out / "eval", video, names, args.overwrite)
+    workers = capped_to_cores(args.workers, "--workers")
+    out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
 
     _step(f"demos: {args.demos} demonstrations of {env.name}")
-    written = collect_demos(env, args.demos, args.seed, demos_path, args.workers, progress)
+    written = collect_demos(env, args.demos, args.seed, demos_path, workers, progress)
     print_lines(written)
     if not written.num_written:
         return 1
@@ -85,9 +102,9 @@ def run(args: argparse.Namespace) -> int:
     _step(f"eval: {', '.join(names)} on {args.tasks} tasks")
     base = planning_config_for(env, timeout=args.timeout)
     reports = evaluate_approaches(
-        env, names, skills_dir, learned, base, args.tasks, args.seed, 0, False, True, args.workers
+        env, names, skills_dir, learned, base, args.tasks, args.seed, 0, False, True, workers
     )
-    report_evaluation(env, reports, out / "eval", out / "eval_solved.mp4", args.seed, False)
+    report_evaluation(env, reports, out / "eval", video, args.seed, False)
     if not all(r.num_solved for r in reports):
         return 1
     print(f"done in {time.perf_counter() - t0:.0f} s; everything is in {out}/")
