@@ -34,7 +34,7 @@ system-deps:
 	fi
 
 run: $(STAMP)
-	$(VENV)/bin/bpns run --env cover --demos $(N) --tasks $(TASKS) --timeout 30 --out $(OUT)
+	$(VENV)/bin/bpns run --env cover --demos $(N) --tasks $(TASKS) --timeout 30 --out $(OUT) --overwrite
 
 test: $(STAMP)
 	$(PY) -m pytest -q

@@ -1,13 +1,13 @@
-"""Evaluate an approach on held-out tasks: plan each task, check the plan, summarise.
+"""Evaluate an approach on held-out tasks: solve each task, check the plan, summarise.
 
 Every solved plan is *validated*: its actions are re-simulated from the task's initial
 state and the goal must hold at the end (``f`` is exact, so this only fails if the
-planner or an environment breaks its contract). Test time is the wall-clock time of
-the ``plan`` call alone, measured inside the process that ran it.
+approach or an environment breaks its contract). Test time is the wall-clock time of
+the ``solve`` call alone, measured inside the process that ran it.
 
-Tasks are independent, so they run in a process pool; each worker builds its own
-environment and skills from a picklable :class:`EvalSpec` (predicates are code and
-need not pickle).
+Any registered approach runs (:mod:`bpns.approaches`). Tasks are independent, so they
+run in a process pool; each worker builds its own environment and approach from a
+picklable :class:`EvalSpec` (predicates are code and need not pickle).
 """
 
 from __future__ import annotations
@@ -25,25 +25,21 @@ from typing import Any
 import numpy as np
 
 from bpns.abstraction import abstract
-from bpns.approaches import SkillSource, get_approach
+from bpns.approaches import Approach, get_approach
+from bpns.approaches import NoOracleSkillsError as NoOracleSkillsError  # re-exported
 from bpns.environment import Environment
-from bpns.planning.bilevel import plan
 from bpns.planning.config import PlanningConfig
-from bpns.structs import Skill, Task
-
-
-class NoOracleSkillsError(ValueError):
-    """The environment declares no hand-written skills."""
+from bpns.structs import Task
 
 
 @dataclass(frozen=True)
 class EvalSpec:
-    """Everything a worker needs to rebuild the environment and skills by itself."""
+    """Everything a worker needs to rebuild the environment and approach by itself."""
 
     env_name: str
     approach: str
-    planning: PlanningConfig
-    skills_dir: str | None = None  # learned approaches only
+    planning: PlanningConfig  # the approach's settings; ``planning.timeout`` per task
+    skills_dir: str | None = None  # approaches built from learned artifacts only
     task_seed: int = 0  # seed of the eval task stream
     planner_seed: int = 0  # rng of sampling, per task: [planner_seed, task index]
     train_tasks: bool = False  # evaluate on the train distribution instead
@@ -52,7 +48,7 @@ class EvalSpec:
 
 @dataclass(frozen=True, eq=False)
 class TaskOutcome:
-    """The result of planning one task (``actions`` is empty unless solved)."""
+    """The result of solving one task (``actions`` is empty unless solved)."""
 
     index: int
     solved: bool
@@ -177,50 +173,39 @@ def markdown_table(reports: Sequence[EvalReport]) -> str:
 # ------------------------------------------------------------------------ running tasks
 
 
-def skills_for(spec: EvalSpec, env: Environment) -> list[Skill]:
-    """The skills ``spec.approach`` plans with, built in this process."""
-    approach = get_approach(spec.approach)
-    if approach.skills is SkillSource.ORACLE:
-        make = getattr(env, "oracle_skills", None)
-        if make is None:
-            raise NoOracleSkillsError(f"environment {env.name!r} declares no oracle skills")
-        return list(make())
-    if spec.skills_dir is None:
-        raise ValueError(f"approach {spec.approach!r} needs a skills directory")
-    from bpns.learning.artifacts import load_skills
-
-    return list(load_skills(spec.skills_dir, env.predicates, env.types).skills)
+def approach_for(spec: EvalSpec, env: Environment) -> Approach:
+    """``spec``'s approach, built in this process."""
+    return get_approach(spec.approach).make(env, spec.planning, spec.skills_dir)
 
 
 def solve_task(
+    approach: Approach,
     task: Task,
     index: int,
-    skills: Sequence[Skill],
     env: Environment,
-    config: PlanningConfig,
+    timeout: float,
     rng: np.random.Generator,
     validate: bool = True,
 ) -> TaskOutcome:
-    """Plan ``task`` once, time it and (optionally) validate the plan by re-simulation."""
+    """Solve ``task`` once, time it and (optionally) validate the plan by re-simulation."""
     t0 = time.perf_counter()
-    result = plan(task, skills, env, config, rng)
+    result = approach.solve(task, rng, timeout)
     seconds = time.perf_counter() - t0
     validated = None
     if result.success and validate:
         validated = plan_reaches_goal(env, task, result.actions)
-    s = result.stats
     return TaskOutcome(
         index=index,
         solved=bool(result.success and validated is not False),
         seconds=seconds,
         reason=None if result.success else str(result.reason),
         num_actions=len(result.actions),
-        nodes_created=s.nodes_created,
-        abstract_plans=s.abstract_plans_tried,
-        samples=s.samples_drawn,
-        sim_steps=s.sim_steps,
+        nodes_created=result.nodes_created,
+        abstract_plans=result.abstract_plans,
+        samples=result.samples,
+        sim_steps=result.sim_steps,
         validated=validated,
-        skeleton=tuple(str(op) for op in result.skeleton.operators) if result.success else (),
+        skeleton=result.skeleton if result.success else (),
         actions=result.actions,
     )
 
@@ -240,7 +225,7 @@ def _init_worker(spec: EvalSpec) -> None:
     from bpns.registry import make_environment
 
     env = make_environment(spec.env_name)
-    _WORKER.update(spec=spec, env=env, skills=skills_for(spec, env))
+    _WORKER.update(spec=spec, env=env, approach=approach_for(spec, env))
 
 
 def _run_index(index: int) -> TaskOutcome:
@@ -248,7 +233,8 @@ def _run_index(index: int) -> TaskOutcome:
     env: Environment = _WORKER["env"]
     task = env.task(index, spec.task_seed, spec.train_tasks)
     rng = np.random.default_rng([spec.planner_seed, index])
-    return solve_task(task, index, _WORKER["skills"], env, spec.planning, rng, spec.validate)
+    approach: Approach = _WORKER["approach"]
+    return solve_task(approach, task, index, env, spec.planning.timeout, rng, spec.validate)
 
 
 def run_tasks(spec: EvalSpec, indices: Sequence[int], workers: int = 1) -> Iterator[TaskOutcome]:
@@ -274,7 +260,7 @@ def evaluate(
     learning_seconds: float | None = None,
     progress: Callable[[Iterator[TaskOutcome], int], Iterator[TaskOutcome]] | None = None,
 ) -> EvalReport:
-    """Plan tasks 0..num_tasks-1 of the seeded eval stream with ``spec``'s approach."""
+    """Solve tasks 0..num_tasks-1 of the seeded eval stream with ``spec``'s approach."""
     if num_tasks < 1:
         raise ValueError(f"num_tasks must be >= 1, got {num_tasks}")
     stream = run_tasks(spec, range(num_tasks), workers)

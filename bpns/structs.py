@@ -188,6 +188,14 @@ class STRIPSOperator:
     preconditions: frozenset[LiftedAtom]
     add_effects: frozenset[LiftedAtom]
     delete_effects: frozenset[LiftedAtom]
+    # Where planning orders this operator among others (grounding and so search
+    # tie-breaks); None: by ``name``. Learned operators keep their index name here, so
+    # renaming them never changes a plan.
+    order_key: str | None = field(default=None, compare=False)
+
+    @property
+    def sort_name(self) -> str:
+        return self.name if self.order_key is None else self.order_key
 
     def ground(self, objects: Sequence[Object]) -> GroundOperator:
         objects = tuple(objects)

@@ -66,6 +66,8 @@ ORDER = ("cover", "stick_button", "coffee", "doors")  # the paper's order; other
 
 
 def main() -> None:
+    from bpns.approaches import approach_names
+
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--env", default="cover")
     parser.add_argument("--tasks", type=int, default=200)
@@ -78,6 +80,13 @@ def main() -> None:
     parser.add_argument("--eval-tasks", type=int, default=50)
     parser.add_argument("--timeout", type=float, default=60.0)
     parser.add_argument("--ablations", action="store_true", help="also Samples=1, AbstractPlans=1")
+    parser.add_argument(
+        "--approach",
+        nargs="*",
+        default=[],
+        choices=[n for n in approach_names() if n not in ("bpns", "oracle")],
+        help="further approaches (registry names) in each learned row's table",
+    )
     parser.add_argument("--bench", action="store_true", help="also the two benchmarks")
     parser.add_argument("--work", type=Path, help="default: outputs/results/<env>")
     parser.add_argument("--reuse", action="store_true", help="reuse --work/demos.h5")
@@ -108,6 +117,7 @@ def main() -> None:
             f"--eval-tasks {args.eval_tasks}",
             f"--timeout {args.timeout:g}",
             *(["--ablations"] if args.ablations else []),
+            *(["--approach", *args.approach] if args.approach else []),
             *(["--bench"] if args.bench else []),
             *(["--reuse"] if args.reuse else []),
         ]
@@ -224,20 +234,22 @@ def learning_results(args, name: str) -> list[str]:
     rows, commands, learn_lines = [], [], []
     if not args.learn:  # the oracle skills alone
         ev = ["eval", "--env", args.env, "--approach", "oracle", "--out"]
-        bpns(*ev, str(work / "eval_oracle"), *eval_args)
+        bpns(*ev, str(work / "eval_oracle"), "--overwrite", *eval_args)
         commands.append(f"bpns {' '.join(ev)} {work}/eval_oracle ...")
         rows += (work / "eval_oracle" / "results.md").read_text().strip().splitlines()[2:]
     elif not (args.reuse and demos.exists()):
-        bpns("demos", "--env", args.env, "-n", str(args.demos), "--out", str(demos), *common)
+        demos_args = ["--env", args.env, "-n", str(args.demos), "--out", str(demos), "--overwrite"]
+        bpns("demos", *demos_args, *common)
     for i, n in enumerate(args.learn):
         skills = work / f"skills_{n}"
         learn = ["learn", str(demos), "--limit", str(n), "--out", str(skills), "--overwrite"]
         learned = bpns(*learn, "--seed", str(args.seed)).strip().splitlines()
         learn_lines.append(f"- {n} demos: {learned[0].split(' -> ')[0]}")
         approaches = ["bpns"] + (["samples1", "abstract1"] if args.ablations else [])
+        approaches += [a for a in args.approach if a not in approaches]
         approaches += ["oracle"] if i == 0 else []
         ev = ["eval", "--skills", str(skills), "--approach", *approaches, "--out"]
-        bpns(*ev, str(work / f"eval_{n}"), *eval_args)
+        bpns(*ev, str(work / f"eval_{n}"), "--overwrite", *eval_args)
         commands += [f"bpns {' '.join(learn)}", f"bpns {' '.join(ev)} {work}/eval_{n} ..."]
         reports = json.loads((work / f"eval_{n}" / "results.json").read_text())
         rows += (work / f"eval_{n}" / "results.md").read_text().strip().splitlines()[2:]

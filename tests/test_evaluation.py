@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from bpns.approaches import APPROACHES, SkillSource, get_approach
+from bpns.approaches import SkillSource, approach_names, get_approach
 from bpns.evaluation import (
     EvalReport,
     TaskOutcome,
@@ -81,22 +81,17 @@ def test_ablations_are_planner_settings_of_the_same_learned_skills():
     assert get_approach("samples1").planning_config(base).n_samples == 1
     assert get_approach("abstract1").planning_config(base).n_abstract == 1
     assert get_approach("bpns").planning_config(base) == base
-    assert APPROACHES["oracle"].skills is SkillSource.ORACLE
-    assert {a.skills for n, a in APPROACHES.items() if n != "oracle"} == {SkillSource.LEARNED}
+    assert get_approach("oracle").skills is SkillSource.ORACLE
+    others = {get_approach(n).skills for n in approach_names() if n != "oracle"}
+    assert others == {SkillSource.LEARNED}
     with pytest.raises(KeyError, match="unknown approach 'nope'"):
         get_approach("nope")
 
 
 def test_solve_task_validates_the_plan_by_resimulating_it(cover_env):
     task = cover_env.task(0, 0, False)
-    outcome = solve_task(
-        task,
-        0,
-        cover_env.oracle_skills(),
-        cover_env,
-        PlanningConfig(timeout=60.0),
-        np.random.default_rng(0),
-    )
+    oracle = get_approach("oracle").make(cover_env, PlanningConfig(timeout=60.0))
+    outcome = solve_task(oracle, task, 0, cover_env, 60.0, np.random.default_rng(0))
     assert outcome.solved and outcome.validated is True
     assert outcome.num_actions == len(outcome.actions) > 0
     assert outcome.nodes_created >= 1 and outcome.sim_steps >= outcome.num_actions

@@ -48,7 +48,7 @@ def test_round_trip_gives_identical_outputs(skills, tmp_path):
 def test_operators_are_stored_as_readable_json(skills, tmp_path):
     path = save_skills(skills, tmp_path / "skills")
     index = json.loads((path / "skills.json").read_text())
-    op1 = next(e for e in index["skills"] if e["name"] == "Op1")
+    op1 = next(e for e in index["skills"] if e["name"] == "Covers_HandEmpty")
     assert op1["parameters"] == [["?block0", "block"], ["?robot0", "robot"], ["?target0", "target"]]
     assert ["Covers", ["?block0", "?target0"]] in op1["add_effects"]
     assert {p["name"] for p in index["predicates"]} == {"Covers", "HandEmpty", "Holding"}
@@ -82,7 +82,7 @@ def test_saving_is_atomic_and_refuses_to_overwrite_by_default(skills, tmp_path):
         save_skills(skills, path)
     renamed = dataclasses.replace(skills, skills=skills.skills[:1])
     save_skills(renamed, path, overwrite=True)
-    assert [s.name for s in _load(path).skills] == ["Op0"]
+    assert [s.name for s in _load(path).skills] == ["Holding"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["skills"]  # no temporaries left
 
 
@@ -119,5 +119,30 @@ def test_no_subgoal_skills_round_trip(tmp_path):
 def test_describe_lists_every_operator(skills):
     text = describe(skills)
     assert text.startswith("2 skills learned from 30 demonstrations")
-    assert "Op0(?block0:block, ?robot0:robot)    [60 segments, horizon " in text
+    assert "Holding(?block0:block, ?robot0:robot)    [60 segments, horizon " in text
     assert "add: Covers(?block0, ?target0), HandEmpty(?robot0)" in text
+
+
+def test_skills_saved_with_index_names_before_readable_names_still_load(skills, tmp_path):
+    """A directory from before readable names: Op<k> names, weights in Op<k>.*.npz and
+    no order keys in skills.json."""
+    indexed = dataclasses.replace(
+        skills,
+        skills=tuple(
+            dataclasses.replace(
+                s, operator=dataclasses.replace(s.operator, name=f"Op{k}", order_key=None)
+            )
+            for k, s in enumerate(skills.skills)
+        ),
+    )
+    path = save_skills(indexed, tmp_path / "old")
+    index = json.loads((path / "skills.json").read_text())
+    for entry in index["skills"]:
+        del entry["order_key"]
+    (path / "skills.json").write_text(json.dumps(index))
+    assert (path / "Op0.policy.npz").is_file()
+    back = _load(path)
+    assert [s.name for s in back.skills] == ["Op0", "Op1"]
+    assert [s.operator.sort_name for s in back.skills] == ["Op0", "Op1"]
+    # the readable names' order keys are the old names: planning orders them alike
+    assert [s.operator.sort_name for s in skills.skills] == ["Op0", "Op1"]

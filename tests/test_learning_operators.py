@@ -1,5 +1,7 @@
 """Operators: lifted effects, intersected preconditions, filtering of rare skills."""
 
+import re
+
 import pytest
 
 from bpns.learning.operators import anchor_parameters, applicable_bindings, learn_operators
@@ -91,11 +93,52 @@ def test_the_filtering_threshold_is_configurable():
     assert [len(d) for d in learn_operators(partition_segments(_mixed(200, 1)), 0.0)] == [200, 1]
 
 
-def test_operators_are_named_by_decreasing_dataset_size():
+def test_operators_are_indexed_by_decreasing_dataset_size_and_named_after_their_effects():
     datasets = learn_operators(partition_segments(_mixed(3, 5)), 0.0)
-    assert [d.operator.name for d in datasets] == ["Op0", "Op1"]
+    assert [d.operator.name for d in datasets] == ["On", "Holding"]
+    assert [d.operator.order_key for d in datasets] == ["Op0", "Op1"]
     assert [len(d) for d in datasets] == [5, 3]
     assert {str(a) for a in datasets[0].operator.add_effects} == {"On(?block0, ?block1)"}
+    indexed = learn_operators(partition_segments(_mixed(3, 5)), 0.0, index_names=True)
+    assert [d.operator.name for d in indexed] == ["Op0", "Op1"]
+    assert [d.operator.sort_name for d in indexed] == ["Op0", "Op1"]
+    assert [d.operator for d in indexed] != [d.operator for d in datasets]
+
+
+def _op(name, adds=(), dels=()):
+    from bpns.structs import LiftedAtom, Predicate, STRIPSOperator, Variable
+
+    block = Type("block", ("x",))
+    v = Variable("?b", block)
+    pred = {n: Predicate(n, (block,), lambda s, o: True) for n in {*adds, *dels}}
+    atoms = lambda names: frozenset(LiftedAtom(pred[n], (v,)) for n in names)  # noqa: E731
+    return STRIPSOperator(name, (v,), frozenset(), atoms(adds), atoms(dels))
+
+
+def test_readable_names_break_ties_in_index_order_and_are_pddl_identifiers():
+    from bpns.learning.naming import readable_names
+
+    ops = [
+        _op("Op0", adds=("Pressed", "Above")),
+        _op("Op1", adds=("Holding",)),
+        _op("Op2", adds=("Above", "Pressed")),
+        _op("Op3", dels=("HandEmpty",)),
+        _op("Op4"),
+        _op("Op5", adds=("hot water",)),
+        _op("Op6", adds=("Above_Pressed_1",)),  # a base name that equals a tie-break
+    ]
+    names = readable_names(ops)
+    assert names == [
+        "Above_Pressed_2",
+        "Holding",
+        "Above_Pressed_3",
+        "NotHandEmpty",
+        "Noop",
+        "hot_water",
+        "Above_Pressed_1",
+    ]
+    assert len(set(names)) == len(names)
+    assert all(re.fullmatch(r"[A-Za-z][A-Za-z0-9_-]*", n) for n in names)
 
 
 def test_applicable_bindings_match_preconditions_and_enumerate_free_parameters():

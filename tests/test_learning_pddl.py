@@ -27,10 +27,10 @@ def skills():
 def test_learned_domain_parses(skills):
     text = domain_pddl("toycover", toy.TYPES, toy.PREDICATES, skills.operators)
     domain = pddl_parser.DomainParser()(text)
-    assert {str(a.name) for a in domain.actions} == {"Op0", "Op1"}
+    assert {str(a.name) for a in domain.actions} == {"Holding", "Covers_HandEmpty"}
     assert {str(p.name) for p in domain.predicates} == {"Covers", "HandEmpty", "Holding"}
     assert {str(t) for t in domain.types} >= {"block", "robot", "target"}
-    op1 = next(a for a in domain.actions if str(a.name) == "Op1")
+    op1 = next(a for a in domain.actions if str(a.name) == "Covers_HandEmpty")
     assert [str(p.name) for p in op1.parameters] == ["block0", "robot0", "target0"]
 
 

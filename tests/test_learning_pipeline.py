@@ -26,14 +26,14 @@ def skills():
 
 def test_learns_pick_and_place_operators(skills):
     text = {op.name: str(op) for op in skills.operators}
-    assert text["Op0"] == (
-        "Op0(?block0:block, ?robot0:robot)\n"
+    assert text["Holding"] == (
+        "Holding(?block0:block, ?robot0:robot)\n"
         "    pre: HandEmpty(?robot0)\n"
         "    add: Holding(?robot0, ?block0)\n"
         "    del: HandEmpty(?robot0)"
     )
-    assert text["Op1"] == (
-        "Op1(?block0:block, ?robot0:robot, ?target0:target)\n"
+    assert text["Covers_HandEmpty"] == (
+        "Covers_HandEmpty(?block0:block, ?robot0:robot, ?target0:target)\n"
         "    pre: Holding(?robot0, ?block0)\n"
         "    add: Covers(?block0, ?target0), HandEmpty(?robot0)\n"
         "    del: Holding(?robot0, ?block0)"
@@ -46,7 +46,10 @@ def test_records_counts_and_stage_timings(skills):
     assert stats.num_demos == 30
     assert stats.num_segments == 120 and stats.num_groups == 2
     assert stats.num_dropped_groups == 0 and stats.num_dropped_segments == 0
-    assert [(s.name, s.num_segments) for s in stats.skills] == [("Op0", 60), ("Op1", 60)]
+    assert [(s.name, s.num_segments) for s in stats.skills] == [
+        ("Holding", 60),
+        ("Covers_HandEmpty", 60),
+    ]
     assert stats.skills[0].num_sampler_negatives == 60  # the other block, per pick
     assert [name for name, _ in stats.stage_seconds] == [
         "segment",
@@ -60,7 +63,7 @@ def test_records_counts_and_stage_timings(skills):
 
 
 def _solve(skills, task, rng, tries=10):
-    pick, place = skills.skill("Op0"), skills.skill("Op1")
+    pick, place = skills.skill("Holding"), skills.skill("Covers_HandEmpty")
     state = task.init
     for b, t in zip(toy.blocks(2), toy.targets(2), strict=True):
         for skill, objs in ((pick, (b, toy.ROBOT_OBJ)), (place, (b, toy.ROBOT_OBJ, t))):

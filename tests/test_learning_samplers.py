@@ -33,7 +33,7 @@ def skills():
 
 
 def test_pick_subgoals_stay_near_the_demonstrated_grasps(skills):
-    pick = skills.skill("Op0")
+    pick = skills.skill("Holding")
     assert [v.type for v in pick.operator.parameters] == [toy.BLOCK, toy.ROBOT]
     state = toy.make_state(1.0, [3.0, 7.5], [5.0, 9.0])
     rng = np.random.default_rng(0)
@@ -47,7 +47,7 @@ def test_pick_subgoals_stay_near_the_demonstrated_grasps(skills):
 
 
 def test_place_subgoals_put_the_block_on_the_bound_target(skills):
-    place = skills.skill("Op1")
+    place = skills.skill("Covers_HandEmpty")
     state = toy.make_state(4.1, [4.0, 7.5], [2.0, 9.0], held=0)
     rng = np.random.default_rng(0)
     for target in (T0, T1):
@@ -57,7 +57,7 @@ def test_place_subgoals_put_the_block_on_the_bound_target(skills):
 
 
 def test_classifier_rejects_subgoals_of_a_wrong_binding(skills):
-    sampler = skills.skill("Op0").sampler
+    sampler = skills.skill("Holding").sampler
     state = toy.make_state(1.0, [3.0, 7.5], [5.0, 9.0])
     grasp_b0 = np.array([3.0, 1.0, 3.05, 1.0])  # block0 held, robot at block0
     assert sampler.accept_probability(state, (B0, R), grasp_b0) > 0.5
@@ -130,7 +130,7 @@ def _reject_all(sampler: LearnedSampler) -> LearnedSampler:
 
 
 def test_when_every_draw_is_rejected_the_last_draw_is_returned(skills):
-    sampler = _reject_all(skills.skill("Op0").sampler)
+    sampler = _reject_all(skills.skill("Holding").sampler)
     state = toy.make_state(1.0, [3.0, 7.5], [5.0, 9.0])
     got = sampler(state, (B0, R), np.random.default_rng(3))
     # Replay the same random stream by hand: 7 draws, keep the 7th.
@@ -143,7 +143,7 @@ def test_when_every_draw_is_rejected_the_last_draw_is_returned(skills):
 
 
 def test_sampler_round_trips_through_arrays(skills):
-    sampler = skills.skill("Op1").sampler
+    sampler = skills.skill("Covers_HandEmpty").sampler
     back = LearnedSampler.from_arrays(sampler.to_arrays())
     state = toy.make_state(4.1, [4.0, 7.5], [2.0, 9.0], held=0)
     a = sampler(state, (B0, R, T0), np.random.default_rng(1))

@@ -116,3 +116,18 @@ def test_from_ground_operators_keeps_given_operator_order():
     assert [o.name for o in p.operators] == ["b", "a"]
     assert p.n_atoms == 2
     assert np.all([p.pre[1] == 1 << p.index[toy.atom("x")]])
+
+
+def test_grounding_orders_operators_by_their_order_key_so_renaming_keeps_plans():
+    import dataclasses
+
+    ops = [toy.PRESS_DIRECT, toy.PRESS_WITH_STICK, toy.PICK_STICK, toy.PLACE_STICK]
+    before, _ = _stick_problem(ops)
+    # new names sort the other way round; the old names stay as order keys
+    renamed = [
+        dataclasses.replace(op, name=f"Z{9 - k}", order_key=op.name) for k, op in enumerate(ops)
+    ]
+    after, _ = _stick_problem(renamed)
+    assert [(o.operator.order_key, o.objects) for o in after.operators] == [
+        (o.name, o.objects) for o in before.operators
+    ]

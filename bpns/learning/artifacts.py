@@ -109,6 +109,7 @@ def _write_skill(skill: Skill, directory: Path) -> dict[str, Any]:
         "preconditions": _atoms_json(op.preconditions),
         "add_effects": _atoms_json(op.add_effects),
         "delete_effects": _atoms_json(op.delete_effects),
+        "order_key": op.order_key,
         "policy": policy_file,
         "horizon": skill.horizon,
     }
@@ -258,6 +259,7 @@ def _read_skill(
         preconditions=atoms("preconditions"),
         add_effects=atoms("add_effects"),
         delete_effects=atoms("delete_effects"),
+        order_key=entry.get("order_key"),  # absent in directories of Op<k>-named skills
     )
     policy = LearnedPolicy.from_arrays(_npz(directory / entry["policy"]))
     sampler: LearnedSampler | CurrentStateSampler

@@ -58,6 +58,9 @@ class LearningConfig:
     # Add operator parameters for unaffected objects that a relation ties to the affected
     # ones in every segment (operators.anchor_parameters). False: the paper's operators.
     anchor_parameters: bool = True
+    # Name learned operators Op0, Op1, ... as in the paper instead of after their
+    # effects (naming.py); planning is the same either way.
+    index_names: bool = False
     # Policies also see tanh(relative subgoal / this), in feature units (metres, radians):
     # resolution near the subgoal, where demonstrators switch (policies.py). None: off,
     # as in the paper; domains whose demonstrators switch declare it (learning_defaults).

@@ -11,11 +11,13 @@ presses a button) is dropped, and the planner proposes pressing with a stick nob
 
 from __future__ import annotations
 
+import dataclasses
 from collections import defaultdict
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 from bpns.abstraction import object_tuples
+from bpns.learning.naming import index_name, readable_names
 from bpns.learning.partition import SegmentGroup
 from bpns.structs import (
     GroundAtom,
@@ -135,12 +137,15 @@ def learn_operators(
     groups: Sequence[SegmentGroup],
     min_segment_fraction: float = 0.01,
     anchor: bool = True,
+    index_names: bool = False,
 ) -> list[SkillDataset]:
     """One operator per group holding at least ``min_segment_fraction`` of all segments.
 
-    Operators are named ``Op0, Op1, ...`` by decreasing dataset size (ties: first
-    appearance in the demos), so names are stable for a given dataset. ``anchor`` adds
-    anchored parameters (:func:`anchor_parameters`) before preconditions are induced.
+    Operators are indexed by decreasing dataset size (ties: first appearance in the
+    demos), so they are stable for a given dataset, and named after their effects
+    (:mod:`bpns.learning.naming`), or ``Op0, Op1, ...`` with ``index_names``; the index
+    name is always the ``order_key``. ``anchor`` adds anchored parameters
+    (:func:`anchor_parameters`) before preconditions are induced.
     """
     total = sum(len(g) for g in groups)
     kept = [(i, g) for i, g in enumerate(groups) if len(g) >= min_segment_fraction * total]
@@ -153,7 +158,7 @@ def learn_operators(
             if anchored is not group:
                 scope_size, group = len(group.parameters), anchored
         op = STRIPSOperator(
-            name=f"Op{k}",
+            name=index_name(k),
             parameters=group.parameters,
             preconditions=induce_preconditions(group),
             add_effects=group.add_effects,
@@ -162,7 +167,15 @@ def learn_operators(
         inverses = (_inverse(sub) for sub in group.substitutions)
         bindings = tuple(tuple(inv[v] for v in group.parameters) for inv in inverses)
         datasets.append(SkillDataset(op, group.segments, bindings, scope_size))
-    return datasets
+    if index_names:
+        return datasets
+    names = readable_names([d.operator for d in datasets])
+    return [
+        dataclasses.replace(
+            d, operator=dataclasses.replace(d.operator, name=name, order_key=d.operator.name)
+        )
+        for d, name in zip(datasets, names, strict=True)
+    ]
 
 
 def _inverse(sub: Mapping[Object, Variable]) -> dict[Variable, Object]:

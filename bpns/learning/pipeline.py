@@ -143,7 +143,9 @@ def learn_skills(
     with timer.stage("partition"):
         groups = partition_segments(segments)
     with timer.stage("operators"):
-        datasets = learn_operators(groups, config.min_segment_fraction, config.anchor_parameters)
+        datasets = learn_operators(
+            groups, config.min_segment_fraction, config.anchor_parameters, config.index_names
+        )
     say(f"{len(datasets)} operators from {len(groups)} groups")
     skills: list[Skill] = []
     skill_stats: list[SkillStats] = []

@@ -7,7 +7,8 @@
 - :mod:`~bpns.planning.bilevel`: ``plan(task, skills, env, config, rng)``.
 """
 
-from bpns.planning.bilevel import FailureReason, PlanningStats, PlanResult, plan
+from bpns.failures import FailureReason
+from bpns.planning.bilevel import PlanningStats, PlanResult, plan
 from bpns.planning.config import PlanningConfig
 from bpns.planning.heuristics import HFF, HAdd, Heuristic, HMax, LMCut, make_heuristic
 from bpns.planning.refinement import RefinementResult, RefinementStats, refine

@@ -7,7 +7,6 @@ grounding and search loops and before every simulation step) it returns a failed
 
 from __future__ import annotations
 
-import enum
 import time
 from collections import Counter
 from collections.abc import Sequence
@@ -17,24 +16,14 @@ import numpy as np
 
 from bpns.abstraction import abstract
 from bpns.environment import Environment
+from bpns.failures import FailureReason
 from bpns.planning.config import PlanningConfig
 from bpns.planning.heuristics import make_heuristic
 from bpns.planning.nogoods import NogoodMemo, PrefixCache
-from bpns.planning.refinement import TIMEOUT, RefinementStats, refine
+from bpns.planning.refinement import RefinementStats, refine
 from bpns.planning.search import STRATEGIES, AbstractPlan, SearchStats, skeletons
 from bpns.planning.strips import SearchTimeout, ground
 from bpns.structs import Skill, State, STRIPSOperator, Task
-
-
-class FailureReason(str, enum.Enum):
-    """Why planning failed; compares equal to its string value (``"timeout"`` ...)."""
-
-    TIMEOUT = "timeout"
-    NO_ABSTRACT_PLAN = "no_abstract_plan"  # the abstract search found no plan at all
-    REFINEMENT_FAILED = "refinement_failed"  # every abstract plan tried failed to refine
-
-    def __str__(self) -> str:
-        return self.value
 
 
 @dataclass(frozen=True)
@@ -49,7 +38,7 @@ class PlanningStats:
     search_time: float = 0.0  # grounding + heuristic search (s)
     refinement_time: float = 0.0  # sampling + simulation (s)
     total_time: float = 0.0
-    sample_failures: tuple[tuple[str, int], ...] = ()
+    sample_failures: tuple[tuple[FailureReason, int], ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,7 +48,8 @@ class PlanResult:
     On success ``actions`` (k x action_dim) take ``states[0]`` (the task's initial state)
     to ``states[-1]`` where the goal holds; ``skeleton`` is the abstract plan refined and
     ``skills`` the skill used at each of its steps. On failure ``actions`` is empty,
-    ``states`` is ``(init,)`` and ``reason`` says why.
+    ``states`` is ``(init,)`` and ``reason`` says why (``TIMEOUT``, ``NO_ABSTRACT_PLAN``
+    or ``REFINEMENT_FAILED``).
     """
 
     success: bool
@@ -152,7 +142,7 @@ def plan(
                     step_starts=ref.step_starts,
                     subgoals=ref.subgoals,
                 )
-            if ref.reason == TIMEOUT:
+            if ref.reason is FailureReason.TIMEOUT:
                 raise SearchTimeout
     except SearchTimeout:
         return acc.result(False, task, action_dim, FailureReason.TIMEOUT, None)

@@ -130,8 +130,8 @@ def ground(
     """Ground ``operators`` over typed, pairwise-distinct ``objects``, keeping only those
     whose preconditions are reachable in the delete relaxation from ``init_atoms``.
 
-    Ground operators are ordered by (operator name, position in ``operators``, object
-    names) so search tie-breaking is deterministic. Raises :class:`SearchTimeout` past
+    Ground operators are ordered by (operator ``sort_name``, position in ``operators``,
+    object names) so search tie-breaking is deterministic. Raises :class:`SearchTimeout` past
     ``deadline``.
     """
     check_deadline(deadline)
@@ -160,7 +160,8 @@ def ground(
                     reached_by_pred.setdefault(a.predicate, []).append(a.objects)
                     changed = True
     ordered = sorted(
-        found.items(), key=lambda kv: (kv[1].name, kv[0][0], tuple(o.name for o in kv[0][1]))
+        found.items(),
+        key=lambda kv: (kv[1].operator.sort_name, kv[0][0], tuple(o.name for o in kv[0][1])),
     )
     return GroundProblem.from_ground_operators((g for _, g in ordered), init_atoms, goal)
 

@@ -1,0 +1,122 @@
+"""What an approach is: something that solves one task of one environment at a time.
+
+An :class:`Approach` is built inside the process that runs it (an evaluation worker)
+from its registry entry (:class:`ApproachEntry`): the environment, the planning/rollout
+settings and, for approaches that need learned artifacts, the skills directory. Then
+``solve(task, rng, timeout)`` is called once per task and returns a :class:`Solution`:
+the actions (replayable in the environment from the task's initial state), why it
+failed, and what it cost.
+
+Three kinds fit: bilevel planning with learned or oracle skills
+(:mod:`bpns.approaches.bilevel`), a metacontroller that picks and executes one ground
+skill at a time (:mod:`bpns.approaches.metacontroller`), and a model-free policy that
+acts every control step (:mod:`bpns.approaches.policy`).
+"""
+
+from __future__ import annotations
+
+import abc
+import dataclasses
+import enum
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bpns.environment import Environment
+from bpns.failures import FailureReason
+from bpns.planning.config import PlanningConfig
+from bpns.structs import Task
+
+
+class NoOracleSkillsError(ValueError):
+    """The environment declares no hand-written skills."""
+
+
+@dataclass(frozen=True, eq=False)
+class Solution:
+    """The outcome of one ``solve`` call.
+
+    ``actions`` (k x action_dim) take the task's initial state to the goal when
+    ``success``, else they are empty and ``reason`` says why. ``skeleton`` names the
+    ground skills the actions execute, in order (empty for a policy without skills).
+    The counts are what the attempt cost: abstract search nodes created, abstract plans
+    tried, subgoal samples drawn and simulator steps taken (0 where they do not apply).
+    """
+
+    success: bool
+    actions: np.ndarray
+    reason: FailureReason | None = None
+    skeleton: tuple[str, ...] = ()
+    nodes_created: int = 0
+    abstract_plans: int = 0
+    samples: int = 0
+    sim_steps: int = 0
+    details: object = field(default=None, repr=False)  # e.g. the planner's PlanResult
+
+
+def failure(reason: FailureReason, action_dim: int, **counts: int) -> Solution:
+    """A failed :class:`Solution` with no actions."""
+    return Solution(False, np.zeros((0, action_dim)), reason, **counts)
+
+
+class Approach(abc.ABC):
+    """Solves tasks of the environment it was built for, one ``solve`` call per task."""
+
+    @abc.abstractmethod
+    def solve(self, task: Task, rng: np.random.Generator, timeout: float) -> Solution:
+        """Solve ``task`` within ``timeout`` wall-clock seconds, drawing randomness from
+        ``rng`` only. Must not raise for a task it cannot solve: return a failed
+        Solution (``FailureReason.TIMEOUT`` when the time ran out)."""
+
+
+class SkillSource(str, enum.Enum):
+    """What an approach is built from, besides the environment."""
+
+    LEARNED = "learned"  # artifacts learned from demonstrations: a skills directory
+    ORACLE = "oracle"  # the environment's hand-written skills (``env.oracle_skills()``)
+    NONE = "none"  # nothing else
+
+
+# (environment, planning and rollout settings, skills directory or None) -> approach
+Builder = Callable[[Environment, PlanningConfig, "Path | None"], Approach]
+
+
+def _same(config: PlanningConfig) -> PlanningConfig:
+    return config
+
+
+@dataclass(frozen=True)
+class ApproachEntry:
+    """One named approach in the registry (see :mod:`bpns.approaches.registry`).
+
+    ``adjust`` derives this approach's settings from the common ones (the paper's
+    ablations are one-line entries: ``Samples=1`` sets ``n_samples=1``); ``build`` makes
+    the approach inside the worker process (entries must pickle: use module-level
+    functions)."""
+
+    name: str  # command-line name
+    label: str  # name in tables (the paper's)
+    description: str
+    skills: SkillSource
+    build: Builder
+    adjust: Callable[[PlanningConfig], PlanningConfig] = _same
+
+    def planning_config(self, base: PlanningConfig) -> PlanningConfig:
+        return self.adjust(base)
+
+    def make(
+        self, env: Environment, planning: PlanningConfig, skills_dir: str | Path | None = None
+    ) -> Approach:
+        """Build the approach for ``env``; ``skills_dir`` is required when it learns."""
+        if self.skills is SkillSource.LEARNED and skills_dir is None:
+            raise ValueError(f"approach {self.name!r} needs a skills directory")
+        if self.skills is SkillSource.ORACLE and not hasattr(env, "oracle_skills"):
+            raise NoOracleSkillsError(f"environment {env.name!r} declares no oracle skills")
+        return self.build(env, planning, None if skills_dir is None else Path(skills_dir))
+
+
+def with_timeout(config: PlanningConfig, timeout: float) -> PlanningConfig:
+    """``config`` with ``timeout`` (the same object when it already has it)."""
+    return config if config.timeout == timeout else dataclasses.replace(config, timeout=timeout)

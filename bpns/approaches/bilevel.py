@@ -1,0 +1,108 @@
+"""Bilevel planning (paper Alg. 1) as an approach, with learned or oracle skills, and
+the paper's rows that use it: BPNS, Oracle, and the ablations Samples=1 and
+AbstractPlans=1 (planner settings of the same learned skills)."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from bpns.approaches.base import (
+    Approach,
+    ApproachEntry,
+    NoOracleSkillsError,
+    SkillSource,
+    Solution,
+    with_timeout,
+)
+from bpns.environment import Environment
+from bpns.planning.bilevel import plan
+from bpns.planning.config import PlanningConfig
+from bpns.structs import Skill, Task
+
+
+class BilevelPlanning(Approach):
+    """Plan each task with ``skills`` by bilevel planning under ``config``."""
+
+    def __init__(self, env: Environment, skills: Sequence[Skill], config: PlanningConfig):
+        self.env = env
+        self.skills = list(skills)
+        self.config = config
+
+    def solve(self, task: Task, rng: np.random.Generator, timeout: float) -> Solution:
+        result = plan(task, self.skills, self.env, with_timeout(self.config, timeout), rng)
+        s = result.stats
+        return Solution(
+            success=result.success,
+            actions=result.actions,
+            reason=result.reason,
+            skeleton=(
+                tuple(str(op) for op in result.skeleton.operators)
+                if result.success and result.skeleton is not None
+                else ()
+            ),
+            nodes_created=s.nodes_created,
+            abstract_plans=s.abstract_plans_tried,
+            samples=s.samples_drawn,
+            sim_steps=s.sim_steps,
+            details=result,
+        )
+
+
+def oracle_skills(env: Environment) -> list[Skill]:
+    """The environment's hand-written skills."""
+    make = getattr(env, "oracle_skills", None)
+    if make is None:
+        raise NoOracleSkillsError(f"environment {env.name!r} declares no oracle skills")
+    return list(make())
+
+
+def learned_skills(env: Environment, skills_dir: str | Path) -> list[Skill]:
+    """The skills saved in ``skills_dir``, bound to ``env``'s predicates and types."""
+    from bpns.learning.artifacts import load_skills
+
+    return list(load_skills(skills_dir, env.predicates, env.types).skills)
+
+
+def _with_learned(env: Environment, config: PlanningConfig, skills_dir: Path | None) -> Approach:
+    assert skills_dir is not None  # ApproachEntry.make checks it
+    return BilevelPlanning(env, learned_skills(env, skills_dir), config)
+
+
+def _with_oracle(env: Environment, config: PlanningConfig, skills_dir: Path | None) -> Approach:
+    return BilevelPlanning(env, oracle_skills(env), config)
+
+
+def _one_sample(config: PlanningConfig) -> PlanningConfig:
+    return dataclasses.replace(config, n_samples=1)
+
+
+def _one_plan(config: PlanningConfig) -> PlanningConfig:
+    return dataclasses.replace(config, n_abstract=1)
+
+
+BPNS = ApproachEntry(
+    "bpns", "BPNS", "learned skills, bilevel planning", SkillSource.LEARNED, _with_learned
+)
+ORACLE = ApproachEntry(
+    "oracle", "Oracle", "hand-written skills, same planner", SkillSource.ORACLE, _with_oracle
+)
+SAMPLES1 = ApproachEntry(
+    "samples1",
+    "Samples=1",
+    "BPNS with one subgoal sample per step (no backtracking over samples)",
+    SkillSource.LEARNED,
+    _with_learned,
+    _one_sample,
+)
+ABSTRACT1 = ApproachEntry(
+    "abstract1",
+    "AbstractPlans=1",
+    "BPNS refining only the first abstract plan",
+    SkillSource.LEARNED,
+    _with_learned,
+    _one_plan,
+)

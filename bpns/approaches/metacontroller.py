@@ -1,0 +1,116 @@
+"""A metacontroller: pick one ground skill at a time and execute it (no planning).
+
+:class:`Metacontroller` runs the loop; a subclass says which ground skill to execute
+next from the current state and abstract state (:meth:`Metacontroller.choose`, e.g. a
+GNN trained on demonstrations' skill sequences), with a subgoal of its own or one drawn
+from the skill's sampler. Each chosen skill is executed by the shared rollout
+(:class:`bpns.execution.SkillExecutor`) until the abstract state its operator predicts
+holds; any failure of an execution ends the attempt with that failure's reason.
+"""
+
+from __future__ import annotations
+
+import abc
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from bpns.abstraction import abstract
+from bpns.approaches.base import Approach, Solution, failure
+from bpns.environment import Environment
+from bpns.execution import (
+    ExecutionTimeout,
+    RolloutConfig,
+    SkillExecutor,
+    completion_test,
+    expected_after,
+)
+from bpns.failures import FailureReason
+from bpns.planning.config import PlanningConfig
+from bpns.structs import GroundAtom, Object, Skill, State, Task
+
+
+@dataclass(frozen=True, eq=False)
+class SkillChoice:
+    """Execute ``skill`` with ``objects`` (its operator's parameter order) towards
+    ``subgoal``; None draws the subgoal from the skill's sampler."""
+
+    skill: Skill
+    objects: tuple[Object, ...]
+    subgoal: np.ndarray | None = None
+
+
+class Metacontroller(Approach):
+    """Choose-and-execute loop until the goal holds; at most ``config.max_plan_length``
+    skills, each limited like a refinement step (``config``'s rollout fields)."""
+
+    def __init__(self, env: Environment, config: PlanningConfig) -> None:
+        self.env = env
+        self.config = config
+        self.action_dim = np.asarray(env.action_low).size
+
+    @abc.abstractmethod
+    def choose(
+        self,
+        task: Task,
+        state: State,
+        atoms: frozenset[GroundAtom],
+        history: Sequence[SkillChoice],
+        rng: np.random.Generator,
+    ) -> SkillChoice | None:
+        """The next ground skill to execute, or None when there is none to try."""
+
+    def solve(self, task: Task, rng: np.random.Generator, timeout: float) -> Solution:
+        deadline = time.monotonic() + timeout
+        executor = SkillExecutor(self.env, task, RolloutConfig.of(self.config), deadline)
+        state = task.init
+        atoms = abstract(state, self.env.predicates)
+        actions: list[np.ndarray] = []
+        history: list[SkillChoice] = []
+        skeleton: list[str] = []
+        samples = 0
+
+        def failed(reason: FailureReason) -> Solution:
+            return failure(reason, self.action_dim, samples=samples, sim_steps=executor.sim_steps)
+
+        try:
+            while not task.goal_holds(atoms):
+                if time.monotonic() >= deadline:
+                    return failed(FailureReason.TIMEOUT)
+                if len(history) >= self.config.max_plan_length:
+                    return failed(FailureReason.NO_SKILL)
+                choice = self.choose(task, state, atoms, history, rng)
+                if choice is None:
+                    return failed(FailureReason.NO_SKILL)
+                op = choice.skill.operator.ground(choice.objects)
+                subgoal = choice.subgoal
+                if subgoal is None:
+                    samples += 1
+                    try:
+                        subgoal = np.asarray(
+                            choice.skill.sampler(state, op.objects, rng), dtype=np.float64
+                        )
+                    except Exception:
+                        return failed(FailureReason.SAMPLER_ERROR)
+                    if not np.isfinite(subgoal).all():
+                        return failed(FailureReason.SAMPLER_NONFINITE)
+                test = completion_test(op, expected_after(op, atoms))
+                out = executor.execute(choice.skill, op.objects, subgoal, state, test, len(actions))
+                if isinstance(out, FailureReason):
+                    return failed(out)
+                history.append(choice)
+                skeleton.append(str(op))
+                actions.extend(out.actions)
+                state = out.states[-1]
+                atoms = abstract(state, self.env.predicates)
+        except ExecutionTimeout:
+            return failed(FailureReason.TIMEOUT)
+        return Solution(
+            success=True,
+            actions=np.array(actions, dtype=np.float64).reshape(len(actions), self.action_dim),
+            skeleton=tuple(skeleton),
+            samples=samples,
+            sim_steps=executor.sim_steps,
+        )

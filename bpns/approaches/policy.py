@@ -1,0 +1,66 @@
+"""A model-free policy acting every control step (e.g. behavioural cloning).
+
+:class:`ClosedLoopPolicy` runs the loop; a subclass maps the current state to an action
+(:meth:`ClosedLoopPolicy.act`). Its outputs get the same checks as a skill's policy
+(:func:`bpns.execution.checked_action`: an exception, a wrong shape or NaN fails the
+attempt, actions are clipped into bounds). The goal is tested after every step; the
+attempt fails when the task's horizon is used up or the time runs out.
+"""
+
+from __future__ import annotations
+
+import abc
+import time
+
+import numpy as np
+
+from bpns.abstraction import abstract
+from bpns.approaches.base import Approach, Solution, failure
+from bpns.environment import Environment
+from bpns.execution import checked_action
+from bpns.failures import FailureReason
+from bpns.structs import State, Task
+
+
+class ClosedLoopPolicy(Approach):
+    def __init__(self, env: Environment) -> None:
+        self.env = env
+        self.low = np.asarray(env.action_low, dtype=np.float64)
+        self.high = np.asarray(env.action_high, dtype=np.float64)
+
+    def reset(self, task: Task, rng: np.random.Generator) -> None:
+        """Called before the first step of each task (e.g. to clear a history)."""
+
+    @abc.abstractmethod
+    def act(self, task: Task, state: State) -> np.ndarray:
+        """The action to take in ``state`` (the task gives objects and goal)."""
+
+    def solve(self, task: Task, rng: np.random.Generator, timeout: float) -> Solution:
+        deadline = time.monotonic() + timeout
+        self.reset(task, rng)
+        state = task.init
+        actions: list[np.ndarray] = []
+
+        def failed(reason: FailureReason) -> Solution:
+            return failure(reason, self.low.size, sim_steps=len(actions))
+
+        goal_predicates = self.env.goal_predicates
+        while not task.goal_holds(abstract(state, goal_predicates)):
+            if len(actions) >= task.horizon:
+                return failed(FailureReason.TASK_HORIZON)
+            if time.monotonic() >= deadline:
+                return failed(FailureReason.TIMEOUT)
+            try:
+                raw = self.act(task, state)
+            except Exception:
+                return failed(FailureReason.POLICY_ERROR)
+            action = checked_action(raw, self.low, self.high)
+            if isinstance(action, FailureReason):
+                return failed(action)
+            state = self.env.simulate(state, action)
+            actions.append(action)
+        return Solution(
+            success=True,
+            actions=np.array(actions, dtype=np.float64).reshape(len(actions), self.low.size),
+            sim_steps=len(actions),
+        )

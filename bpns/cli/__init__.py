@@ -1,0 +1,56 @@
+"""The ``bpns`` command line: demos, replay, render, learn, skills, eval, run.
+
+One module per command, each with ``HELP``, ``configure(parser)`` and ``run(args)``;
+none imports another (shared helpers live in :mod:`bpns.cli.common`, the work itself in
+library modules). Every command reports bad input (missing/corrupt files, unknown
+environments, bad arguments) as one ``bpns: error: ...`` line and exit status 2, never a
+traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from types import ModuleType
+
+from bpns.cli import demos, learn, render, replay, run, skills
+from bpns.cli import eval as eval_
+from bpns.cli.common import UserError
+
+COMMANDS: dict[str, ModuleType] = {
+    "demos": demos,
+    "replay": replay,
+    "render": render,
+    "learn": learn,
+    "skills": skills,
+    "eval": eval_,
+    "run": run,
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="bpns",
+        description="Bilevel planning with learned neuro-symbolic skills on a MuJoCo Panda.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, command in COMMANDS.items():
+        command.configure(sub.add_parser(name, help=command.HELP, description=command.HELP))
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(COMMANDS[args.command].run(args) or 0)
+    except UserError as err:
+        print(f"bpns: error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("bpns: interrupted", file=sys.stderr)
+        return 130
+
+
+__all__ = ["COMMANDS", "build_parser", "main"]

@@ -1,0 +1,206 @@
+"""Helpers shared by the ``bpns`` sub-commands: user errors, argument types, progress,
+loading inputs as user errors, and the output of an evaluation (``eval`` and ``run``)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+from pathlib import Path
+
+
+class UserError(Exception):
+    """Bad input from the user: reported as one line, no traceback."""
+
+
+def env_by_name(name: str):
+    from bpns.registry import UnknownEnvironmentError, make_environment
+
+    try:
+        return make_environment(name)
+    except UnknownEnvironmentError as err:
+        raise UserError(str(err)) from None
+
+
+def positive(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a number >= 1, got {v}")
+    return v
+
+
+def nonnegative(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {v}")
+    return v
+
+
+def nonnegative_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not v >= 0.0:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text}")
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text}")
+    return v
+
+
+def positive_float(text: str) -> float:
+    v = nonnegative_float(text)
+    if v == 0.0:
+        raise argparse.ArgumentTypeError("expected a number > 0, got 0")
+    return v
+
+
+def tolerance_or_off(text: str) -> float | str:
+    return text if text == "off" else nonnegative_float(text)
+
+
+def default_workers() -> int:
+    return max(1, (os.cpu_count() or 1))
+
+
+def progress(iterable, total: int, desc: str, unit: str = "task"):
+    from tqdm import tqdm
+
+    return tqdm(
+        iterable,
+        total=total,
+        desc=desc,
+        unit=unit,
+        disable=not sys.stderr.isatty() and os.environ.get("BPNS_PROGRESS") != "1",
+        leave=False,
+    )
+
+
+def file_env(path: Path, name: str | None):
+    import h5py
+
+    if name is None:
+        if not path.is_file():
+            raise UserError(f"{path}: no such demonstration file")
+        try:
+            with h5py.File(path, "r") as f:
+                name = str(f.attrs.get("env", ""))
+        except OSError as err:
+            raise UserError(
+                f"{path}: not a readable HDF5 file (corrupt or truncated?): {err}"
+            ) from None
+        if not name:
+            raise UserError(f"{path}: not a bpns demonstration file (no env attribute)")
+    return env_by_name(name)
+
+
+def stage_reporter():
+    """A callback printing learning's stage messages to stderr, unless output is quiet
+    (not a terminal and BPNS_PROGRESS is not 1)."""
+    quiet = not sys.stderr.isatty() and os.environ.get("BPNS_PROGRESS") != "1"
+
+    def report(message: str) -> None:
+        if not quiet:
+            print(f"  {message}", file=sys.stderr, flush=True)
+
+    return report
+
+
+def learned_in(directory: Path, env_name: str | None = None):
+    """(environment, LearnedSkills) of a skills directory, errors as UserError."""
+    from bpns.learned import load_learned
+    from bpns.learning.artifacts import ArtifactError
+    from bpns.registry import UnknownEnvironmentError
+
+    try:
+        return load_learned(directory, env_name)
+    except (ArtifactError, UnknownEnvironmentError) as err:
+        raise UserError(str(err)) from None
+
+
+def print_lines(record) -> None:
+    for line in record.lines():
+        print(line, flush=True)
+
+
+def report_evaluation(env, reports, out: Path | None, video: Path | None, seed: int, train: bool):
+    """Print the table, write the results files to ``out`` and render a solved task to
+    ``video`` (each when given): the end of ``bpns eval`` and of ``bpns run``."""
+    from bpns.evaluation import markdown_table
+    from bpns.reporting import render_longest_solved, write_results
+    from bpns.video import VideoError
+
+    table = markdown_table(reports)
+    print(table, end="")
+    if out is not None:
+        write_results(out, reports, table)
+        print(f"wrote {out / 'results.json'} and {out / 'results.md'}")
+    if video is not None:
+        # the first approach named that solved anything (e.g. the oracle, when skills
+        # learned from a handful of demos solve nothing)
+        solving = next((r for r in reports if r.num_solved), reports[0])
+        try:
+            rendered = render_longest_solved(env, solving, video, seed, train)
+        except VideoError as err:
+            raise UserError(str(err)) from None
+        if rendered is None:
+            print(f"no {solving.label} task was solved: no video", file=sys.stderr)
+        else:
+            print_lines(rendered)
+
+
+def evaluate_approaches(
+    env,
+    names,
+    skills_dir: Path | None,
+    learned,
+    base_planning,
+    num_tasks: int,
+    task_seed: int,
+    planner_seed: int,
+    train: bool,
+    validate: bool,
+    workers: int,
+):
+    """Evaluate each named approach in turn, printing its summary line as it finishes;
+    the reports in the order named (the middle of ``bpns eval`` and of ``bpns run``)."""
+    from bpns.approaches import NoOracleSkillsError, SkillSource, get_approach
+    from bpns.evaluation import EvalSpec, evaluate
+    from bpns.reporting import solved_line
+
+    stats = learned.stats if learned is not None else None
+    reports = []
+    for name in names:
+        approach = get_approach(name)
+        learned_approach = approach.skills is SkillSource.LEARNED
+        spec = EvalSpec(
+            env_name=env.name,
+            approach=approach.name,
+            planning=approach.planning_config(base_planning),
+            skills_dir=str(skills_dir) if learned_approach else None,
+            task_seed=task_seed,
+            planner_seed=planner_seed,
+            train_tasks=train,
+            validate=validate,
+        )
+        try:
+            report = evaluate(
+                spec,
+                num_tasks,
+                workers,
+                num_demos=stats.num_demos if learned_approach and stats else None,
+                learning_seconds=stats.total_seconds if learned_approach and stats else None,
+                progress=lambda it, n, label=approach.label: progress(it, n, f"eval {label}"),
+            )
+        except NoOracleSkillsError as err:
+            raise UserError(str(err)) from None
+        reports.append(report)
+        print(solved_line(report), flush=True)
+    return reports

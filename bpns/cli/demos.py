@@ -1,0 +1,38 @@
+"""``bpns demos``: collect demonstrations with the scripted oracle."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from bpns.cli.common import (
+    default_workers,
+    env_by_name,
+    nonnegative,
+    positive,
+    print_lines,
+    progress,
+)
+from bpns.cli.paths import capped_to_cores, check_output_file
+
+HELP = "collect demonstrations with the scripted oracle"
+
+
+def configure(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--env", required=True, help="environment name (e.g. cover)")
+    p.add_argument("-n", "--num", type=positive, default=10, help="number of train tasks")
+    p.add_argument("--seed", type=nonnegative, default=0)
+    p.add_argument("--out", required=True, type=Path, help="output .h5 file")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    p.add_argument("--workers", type=positive, default=default_workers())
+
+
+def run(args: argparse.Namespace) -> int:
+    from bpns.workflow import collect_demos
+
+    env = env_by_name(args.env)
+    check_output_file(args.out, "--out", args.overwrite)
+    workers = capped_to_cores(args.workers, "--workers")
+    written = collect_demos(env, args.num, args.seed, args.out, workers, progress)
+    print_lines(written)
+    return 0 if written.num_written else 1

@@ -1,0 +1,119 @@
+"""``bpns learn``: learn neuro-symbolic skills from demonstrations."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from pathlib import Path
+
+from bpns.cli.common import (
+    UserError,
+    file_env,
+    nonnegative,
+    nonnegative_float,
+    positive,
+    print_lines,
+    progress,
+    stage_reporter,
+    tolerance_or_off,
+)
+from bpns.cli.paths import capped_to_cores, check_skills_dir
+
+HELP = "learn neuro-symbolic skills from demonstrations"
+
+
+def configure(p: argparse.ArgumentParser) -> None:
+    p.add_argument("demos", type=Path, help="demonstration .h5 file (from `bpns demos`)")
+    p.add_argument("--out", required=True, type=Path, help="skills directory to write")
+    p.add_argument("--limit", type=positive, help="learn from the first N demos only")
+    p.add_argument("--seed", type=nonnegative, default=0, help="seed of all network training")
+    p.add_argument(
+        "--min-segment-fraction",
+        type=nonnegative_float,
+        default=0.01,
+        help="drop skills with fewer than this fraction of all segments (paper: 0.01)",
+    )
+    p.add_argument(
+        "--no-subgoals",
+        action="store_true",
+        help="BPNS-NoSubgoal: policies without subgoals, no samplers",
+    )
+    p.add_argument(
+        "--near-goal-scale",
+        type=tolerance_or_off,
+        help="policies also see tanh(relative subgoal / this) (feature units), or 'off' as "
+        "in the paper (default: the environment's, else off)",
+    )
+    p.add_argument(
+        "--input-margin",
+        type=tolerance_or_off,
+        help="networks clip their inputs into the training range widened by this fraction "
+        "of it (default 0.1), or 'off' as in the paper",
+    )
+    p.add_argument(
+        "--no-anchor",
+        action="store_true",
+        help="operator parameters = affected objects only, as in the paper (no anchored "
+        "parameters such as the robot holding the pressing stick)",
+    )
+    p.add_argument(
+        "--settle-steps",
+        type=positive,
+        help="contact changes closer than this are one event "
+        "(default: the environment's contact_settle_steps, else 1)",
+    )
+    p.add_argument(
+        "--index-names",
+        action="store_true",
+        help="name operators Op0, Op1, ... as in the paper instead of after their effects",
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    p.add_argument(
+        "--threads",
+        type=positive,
+        default=1,
+        help="torch threads for training (1 is fastest for these small networks)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    from bpns.datasets import DatasetError
+    from bpns.learning.config import learning_config_for
+    from bpns.workflow import CannotLearnError, learn_to_directory
+
+    check_skills_dir(args.out, "--out", args.overwrite, [args.demos])
+    if args.min_segment_fraction > 1.0:
+        raise UserError(f"--min-segment-fraction must be <= 1, got {args.min_segment_fraction}")
+    if args.near_goal_scale == 0.0:
+        raise UserError("--near-goal-scale must be > 0 or 'off', got 0")
+    env = file_env(args.demos, None)
+    threads = capped_to_cores(args.threads, "--threads")
+    config = learning_config_for(
+        env,
+        seed=args.seed,
+        min_segment_fraction=args.min_segment_fraction,
+        use_subgoals=False if args.no_subgoals else None,
+        anchor_parameters=False if args.no_anchor else None,
+        settle_steps=args.settle_steps,
+        index_names=True if args.index_names else None,
+    )
+    if args.near_goal_scale is not None:
+        near = None if args.near_goal_scale == "off" else args.near_goal_scale
+        config = dataclasses.replace(config, near_goal_scale=near)
+    if args.input_margin is not None:
+        margin = None if args.input_margin == "off" else args.input_margin
+        config = dataclasses.replace(
+            config,
+            **{
+                name: dataclasses.replace(getattr(config, name), input_margin=margin)
+                for name in ("policy", "generator", "classifier")
+            },
+        )
+    try:
+        learned = learn_to_directory(
+            env, args.demos, args.out, config, args.limit, threads, progress, stage_reporter()
+        )
+    except (DatasetError, CannotLearnError) as err:
+        raise UserError(str(err)) from None
+    print_lines(learned)
+    return 0

@@ -1,0 +1,139 @@
+"""Output paths checked before any work, under one overwrite policy.
+
+A command names every path it will write and checks them all first, so a long
+learning or evaluation run is never thrown away at the end for want of a writable
+place. The policy: an existing output is replaced only with ``--overwrite``, and never
+when it is one of the command's inputs, not a regular file (a directory, a device, a
+FIFO), a symbolic link (the link would be replaced, not what it points to), or, for a
+skills directory, a directory that is not one.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+from bpns.cli.common import UserError
+
+SKILLS_INDEX = "skills.json"  # what marks a directory as a skills directory
+
+
+def _same(a: Path, b: Path) -> bool:
+    try:
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _inside(path: Path, directory: Path) -> bool:
+    try:
+        return path.resolve().is_relative_to(directory.resolve())
+    except (OSError, RuntimeError):
+        return False
+
+
+def _check_writable_place(path: Path, flag: str) -> None:
+    """The deepest existing ancestor of ``path`` must be a directory we can create
+    files in (parents that do not exist yet are created when writing)."""
+    ancestor = path.parent
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        if ancestor.is_symlink():  # a dangling link
+            raise UserError(f"{flag} {path}: {ancestor} is a broken symbolic link")
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise UserError(f"{flag} {path}: {ancestor} is not a directory")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".bpns-write-check-", dir=ancestor)
+    except OSError as err:
+        raise UserError(f"{flag} {path}: cannot write in {ancestor} ({err.strerror})") from None
+    os.close(fd)
+    os.unlink(probe)
+
+
+def check_output_file(path: Path, flag: str, overwrite: bool, inputs: Sequence[Path] = ()) -> None:
+    """``path`` can be written as a new or replaced regular file (see the module doc)."""
+    if str(path) in ("", ".") or path.name in ("", ".", ".."):
+        raise UserError(f"{flag} {str(path)!r}: expected a file name")
+    if path.is_symlink():
+        raise UserError(f"{flag} {path}: is a symbolic link; give the path it points to")
+    if path.exists():
+        mode = path.stat().st_mode
+        if stat.S_ISDIR(mode):
+            raise UserError(f"{flag} {path}: is a directory; expected a file name")
+        if not stat.S_ISREG(mode):
+            raise UserError(f"{flag} {path}: not a regular file; refusing to replace it")
+        for source in inputs:
+            if _same(path, source):
+                raise UserError(f"{flag} {path}: is this command's input; refusing to replace it")
+        if not overwrite:
+            raise UserError(f"{flag} {path}: exists; pass --overwrite to replace it")
+    _check_writable_place(path, flag)
+
+
+def check_skills_dir(path: Path, flag: str, overwrite: bool, inputs: Sequence[Path] = ()) -> None:
+    """``path`` can be written as a new or replaced skills directory."""
+    if str(path) in ("", ".") or path.name in ("", ".", ".."):
+        raise UserError(f"{flag} {str(path)!r}: expected a new directory name")
+    if path.is_symlink():
+        raise UserError(f"{flag} {path}: is a symbolic link; give the path it points to")
+    for source in inputs:
+        if _same(path, source) or _inside(source, path):
+            raise UserError(f"{flag} {path}: holds this command's input; refusing to replace it")
+    if path.exists():
+        if not path.is_dir():
+            raise UserError(f"{flag} {path}: exists and is not a directory")
+        if not (path / SKILLS_INDEX).is_file():
+            raise UserError(
+                f"{flag} {path}: exists and is not a skills directory; refusing to replace it"
+            )
+        if not overwrite:
+            raise UserError(f"{flag} {path}: exists; pass --overwrite to replace it")
+    _check_writable_place(path, flag)
+
+
+def check_output_dir(path: Path, flag: str) -> None:
+    """``path`` is a directory that exists or can be created (its files are checked
+    one by one)."""
+    if path.is_symlink() and not path.is_dir():
+        raise UserError(f"{flag} {path}: is a broken symbolic link")
+    if path.exists() and not path.is_dir():
+        raise UserError(f"{flag} {path}: exists and is not a directory")
+    _check_writable_place(path / "x", flag)
+
+
+def usable_cores() -> int:
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def capped_to_cores(value: int, flag: str) -> int:
+    """``value``, or the machine's core count with a one-line note when it is more."""
+    cores = usable_cores()
+    if value <= cores:
+        return value
+    print(f"bpns: note: {flag} {value} capped at {cores}, this machine's cores", file=sys.stderr)
+    return cores
+
+
+def check_eval_outputs(
+    out: Path | None, video: Path | None, approaches: Sequence[str], overwrite: bool
+) -> None:
+    """The files an evaluation writes: results.json, results.md and plans_<approach>.npz
+    in ``out``; ``video`` and the PNG of its last frame next to it."""
+    if out is not None:
+        check_output_dir(out, "--out")
+        names = ["results.json", "results.md", *(f"plans_{a}.npz" for a in approaches)]
+        for name in names:
+            check_output_file(out / name, "--out", overwrite)
+    if video is not None:
+        png = video.with_suffix(".png")
+        if png == video:
+            raise UserError(f"--video {video}: give an .mp4 name (a PNG is written next to it)")
+        check_output_file(video, "--video", overwrite)
+        check_output_file(png, "--video", overwrite)

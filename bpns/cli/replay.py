@@ -1,0 +1,29 @@
+"""``bpns replay``: re-simulate demonstrations and report any divergence."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from bpns.cli.common import UserError, file_env, positive, print_lines, progress
+
+HELP = "re-simulate demonstrations and report any divergence"
+
+
+def configure(p: argparse.ArgumentParser) -> None:
+    p.add_argument("file", type=Path, help="demonstration .h5 file")
+    p.add_argument("--env", help="environment (default: the one named in the file)")
+    p.add_argument("--limit", type=positive, help="replay only the first N demos")
+
+
+def run(args: argparse.Namespace) -> int:
+    from bpns.datasets import DatasetError
+    from bpns.workflow import check_replay
+
+    env = file_env(args.file, args.env)
+    try:
+        checked = check_replay(env, args.file, args.limit, progress)
+    except DatasetError as err:
+        raise UserError(str(err)) from None
+    print_lines(checked)
+    return 0 if checked.ok else 1

@@ -1,0 +1,233 @@
+"""Executing a skill in the exact simulator: the rollout every approach shares.
+
+:class:`SkillExecutor` runs one ground skill's policy towards a given subgoal until an
+expected abstract state holds (its :class:`CompletionTest`), or fails with a
+:class:`~bpns.failures.FailureReason`: the skill's horizon is hit, the world stops
+changing (``stuck``), a contact atom changes although the test does not hold yet, the
+task's step budget would be exceeded, or the policy misbehaves (exception, wrong
+shape, non-finite output): learned networks must never crash an approach. Actions are
+clipped into the environment's bounds. A deadline (``time.monotonic()``) is checked
+before every step and raises :class:`ExecutionTimeout`.
+
+Bilevel refinement calls it once per subgoal sample; a metacontroller calls it once
+per skill it picks; :func:`checked_action` is the per-step check of a policy that acts
+every control step.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from bpns.abstraction import object_tuples
+from bpns.environment import Environment
+from bpns.failures import FailureReason
+from bpns.structs import GroundAtom, GroundOperator, Object, Skill, State, Task
+
+
+@dataclass(frozen=True)
+class RolloutConfig:
+    """Limits of one skill execution (``PlanningConfig`` documents each field)."""
+
+    max_skill_horizon: int = 200
+    stuck_steps: int = 10
+    stuck_atol: float = 1e-3
+    end_on_contact_change: bool = False
+
+    @classmethod
+    def of(cls, config: object) -> RolloutConfig:
+        """The rollout fields of any config that has them (e.g. a ``PlanningConfig``)."""
+        return cls(
+            max_skill_horizon=config.max_skill_horizon,  # type: ignore[attr-defined]
+            stuck_steps=config.stuck_steps,  # type: ignore[attr-defined]
+            stuck_atol=config.stuck_atol,  # type: ignore[attr-defined]
+            end_on_contact_change=config.end_on_contact_change,  # type: ignore[attr-defined]
+        )
+
+
+@dataclass(frozen=True)
+class CompletionTest:
+    """A skill execution is complete when every ``must_hold`` atom holds and no
+    ``must_not_hold`` atom does."""
+
+    must_hold: tuple[GroundAtom, ...]
+    must_not_hold: tuple[GroundAtom, ...]
+
+
+def completion_test(op: GroundOperator, expected: frozenset[GroundAtom]) -> CompletionTest:
+    """The test for ``op`` to have reached the abstract state ``expected``.
+
+    Add effects come first: they are usually the ones still false, so the conjunction
+    short-circuits after one classifier call on most simulated states. Only the atoms
+    the step can change are tested: those ``expected`` and the delete effects that must
+    be gone.
+    """
+    adds = op.add_effects & expected
+    return CompletionTest(tuple(adds) + tuple(expected - adds), tuple(op.delete_effects - expected))
+
+
+def expected_after(op: GroundOperator, atoms: frozenset[GroundAtom]) -> frozenset[GroundAtom]:
+    """The abstract state ``op``'s effects predict from ``atoms``."""
+    return op.apply(atoms)
+
+
+class ExecutionTimeout(Exception):
+    """The deadline passed during an execution."""
+
+
+@dataclass(frozen=True, eq=False)
+class Executed:
+    """A successful execution: ``actions[i]`` led to ``states[i]`` (the start excluded)."""
+
+    actions: list[np.ndarray]
+    states: list[State]
+
+
+def checked_action(raw: object, low: np.ndarray, high: np.ndarray) -> np.ndarray | FailureReason:
+    """A policy's output as a float action clipped into [low, high], or why it is unusable
+    (wrong shape: ``POLICY_ERROR``, NaN/inf: ``POLICY_NONFINITE``)."""
+    try:
+        action = np.asarray(raw, dtype=np.float64)
+    except Exception:  # whatever a learned policy returned, it must not crash the caller
+        return FailureReason.POLICY_ERROR
+    if action.shape != low.shape:
+        return FailureReason.POLICY_ERROR
+    if not np.isfinite(action).all():
+        return FailureReason.POLICY_NONFINITE
+    return np.minimum(np.maximum(action, low), high)
+
+
+Features = tuple[tuple[Object, ...], np.ndarray]
+
+
+def state_features(state: State) -> Features:
+    """Objects in dict order and all features concatenated (no per-object lookups)."""
+    data = state.data
+    keys = tuple(data)
+    return keys, (np.concatenate(tuple(data.values())) if keys else np.zeros(0))
+
+
+class SkillExecutor:
+    """Executes ground skills for one task. Holds what is constant across executions
+    (bounds, the task's horizon, the contact atoms to watch, the deadline) and counts
+    every simulated step in ``sim_steps``."""
+
+    def __init__(
+        self,
+        env: Environment,
+        task: Task,
+        config: RolloutConfig,
+        deadline: float | None = None,
+    ) -> None:
+        self.env = env
+        self.low = np.asarray(env.action_low, dtype=np.float64)
+        self.high = np.asarray(env.action_high, dtype=np.float64)
+        self.config = config
+        self.horizon = task.horizon
+        self.deadline = deadline
+        self.sim_steps = 0
+        # every ground contact-related atom over the task's objects (segmentation's set)
+        self.contact_watch: list = []
+        if config.end_on_contact_change:
+            contact = getattr(env, "contact_predicates", frozenset())
+            self.contact_watch = [
+                (p.classifier, objs)
+                for p in sorted(contact)
+                for objs in object_tuples(task.init.objects, p.types)
+            ]
+
+    def contact_values(self, state: State) -> tuple[bool, ...]:
+        return tuple(bool(c(state, o)) for c, o in self.contact_watch)
+
+    def unchanged(self, old: Features, new: Features) -> bool:
+        """Is every feature of ``new`` within ``stuck_atol`` of ``old``?"""
+        atol = self.config.stuck_atol
+        if old[0] != new[0]:  # rare: other dict order (align by object) or other objects
+            if set(old[0]) != set(new[0]):
+                return False
+            parts = _split(old)
+            a = np.concatenate([parts[o] for o in new[0]])
+            return a.shape == new[1].shape and bool((np.abs(a - new[1]) <= atol).all())
+        if old[1].shape != new[1].shape:
+            return False
+        return bool((np.abs(old[1] - new[1]) <= atol).all())
+
+    def execute(
+        self,
+        skill: Skill,
+        objects: Sequence[Object],
+        subgoal: np.ndarray,
+        state: State,
+        test: CompletionTest,
+        used_steps: int = 0,
+    ) -> Executed | FailureReason:
+        """Roll ``skill``'s policy out from ``state`` towards ``subgoal`` until ``test``
+        holds; ``used_steps`` actions of the task's horizon are already spent."""
+        must_hold = [(a.predicate.classifier, a.objects) for a in test.must_hold]
+        must_not_hold = [(a.predicate.classifier, a.objects) for a in test.must_not_hold]
+        policy = skill.policy
+        simulate = self.env.simulate
+        low, high = self.low, self.high
+        deadline = self.deadline
+        stuck_steps = self.config.stuck_steps
+        actions: list[np.ndarray] = []
+        states: list[State] = []
+        feats = state_features(state)
+        unchanged = 0
+        watch = self.contact_values(state) if self.contact_watch else None
+        limit = self.config.max_skill_horizon
+        if skill.horizon is not None:
+            limit = min(limit, skill.horizon)
+        for t in range(limit):
+            if deadline is not None and time.monotonic() >= deadline:
+                raise ExecutionTimeout
+            if used_steps + t >= self.horizon:
+                return FailureReason.TASK_HORIZON
+            try:
+                raw = policy(state, objects, subgoal)
+            except Exception:
+                return FailureReason.POLICY_ERROR
+            action = checked_action(raw, low, high)
+            if isinstance(action, FailureReason):
+                return action
+            state = simulate(state, action)
+            self.sim_steps += 1
+            actions.append(action)
+            states.append(state)
+            if _complete(state, must_hold, must_not_hold):
+                return Executed(actions, states)
+            if watch is not None and self.contact_values(state) != watch:
+                return FailureReason.CONTACT_CHANGED
+            # ``feats`` is an anchor: the state where the world last stood still. Comparing
+            # with it, not with the previous step, also catches a limit cycle (an arm
+            # chattering at its reach limit moves every step but goes nowhere).
+            new_feats = state_features(state)
+            if self.unchanged(feats, new_feats):
+                unchanged += 1
+                if unchanged >= stuck_steps:
+                    return FailureReason.STUCK
+            else:
+                unchanged = 0
+                feats = new_feats
+        return FailureReason.SKILL_HORIZON
+
+
+def _split(f: Features) -> dict[Object, np.ndarray]:
+    out, k = {}, 0
+    for o in f[0]:
+        out[o] = f[1][k : k + o.type.dim]
+        k += o.type.dim
+    return out
+
+
+def _complete(state: State, must_hold: list, must_not_hold: list) -> bool:
+    for classifier, objs in must_hold:
+        if not classifier(state, objs):
+            return False
+    for classifier, objs in must_not_hold:
+        if classifier(state, objs):
+            return False
+    return True

@@ -1,0 +1,78 @@
+"""What an evaluation leaves behind: one summary line per approach, the results files
+(results.json, results.md, plans_<approach>.npz) and a video of a solved task."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from bpns.environment import Environment
+from bpns.evaluation import EvalReport, TaskOutcome, save_plans
+
+
+def solved_line(report: EvalReport) -> str:
+    """``BPNS: solved 3/4 cover eval tasks (failures: {...})``."""
+    return (
+        f"{report.label}: solved {report.num_solved}/{report.num_tasks} "
+        f"{report.env} eval tasks" + (f" (failures: {report.failures})" if report.failures else "")
+    )
+
+
+def write_results(out: Path, reports: Sequence[EvalReport], table: str) -> None:
+    """results.json (every report), results.md (``table``) and one plans file per
+    approach in ``out`` (created if missing), each written atomically."""
+    from bpns.atomic import atomic_path
+
+    out.mkdir(parents=True, exist_ok=True)
+    with atomic_path(out / "results.json") as tmp:
+        tmp.write_text(json.dumps([r.to_json() for r in reports], indent=2) + "\n")
+    with atomic_path(out / "results.md") as tmp:
+        tmp.write_text(table)
+    for r in reports:
+        save_plans(out / f"plans_{r.approach}.npz", r)
+
+
+@dataclass(frozen=True)
+class SolvedVideo:
+    video: Path
+    png: Path
+    frames: int
+    label: str
+    outcome: TaskOutcome
+
+    def lines(self) -> list[str]:
+        o = self.outcome
+        return [
+            f"wrote {self.video} ({self.frames} frames: {self.label} solving eval task "
+            f"{o.index} in {len(o.actions)} steps) and {self.png}",
+            "  plan: " + ", ".join(o.skeleton),
+        ]
+
+
+def longest_solved(report: EvalReport) -> TaskOutcome | None:
+    """The solved task with the longest abstract plan (the first of ties), or None: the
+    longest plan shows the most skills at work."""
+    solved = [o for o in report.outcomes if o.solved]
+    return max(solved, key=lambda o: len(o.skeleton)) if solved else None
+
+
+def render_longest_solved(
+    env: Environment, report: EvalReport, video: Path, seed: int, train: bool
+) -> SolvedVideo | None:
+    """Re-simulate :func:`longest_solved` from its task's initial state and render it to
+    ``video`` with a PNG of its end; None when nothing was solved. Raises
+    ``bpns.video.VideoError`` when rendering fails."""
+    from bpns.video import render_video
+
+    outcome = longest_solved(report)
+    if outcome is None:
+        return None
+    task = env.task(outcome.index, seed, train)
+    states = [task.init]
+    for action in outcome.actions:
+        states.append(env.simulate(states[-1], action))
+    png = video.with_suffix(".png")
+    n = render_video(env, states, video, "overview", 640, 480, png)
+    return SolvedVideo(video, png, n, report.label, outcome)

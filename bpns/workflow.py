@@ -1,0 +1,176 @@
+"""The pipeline's steps as library functions: collect demonstrations into a file, check
+that they replay exactly, learn skills into a directory.
+
+The ``bpns`` commands and ``bpns run`` (which chains them) call these; each returns a
+small record whose ``lines()`` are what the command prints, so one step reports the
+same way whichever command ran it.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, TypeVar
+
+from bpns.demos import ReplayReport
+from bpns.environment import Environment
+
+if TYPE_CHECKING:
+    from bpns.learning.config import LearningConfig
+    from bpns.learning.pipeline import LearnedSkills
+
+T = TypeVar("T")
+# (items, total, description, unit) -> the same items (e.g. wrapped in a progress bar)
+Progress = Callable[[Iterable[T], int, str, str], Iterator[T]]
+
+
+class CannotLearnError(ValueError):
+    """The demonstrations hold nothing to learn skills from (e.g. no segments)."""
+
+
+def _no_progress(items: Iterable[T], total: int, desc: str, unit: str) -> Iterator[T]:
+    return iter(items)
+
+
+# -- demonstrations -----------------------------------------------------------------------
+@dataclass(frozen=True)
+class DemosWritten:
+    path: Path
+    env_name: str
+    num_written: int
+    failed: tuple[int, ...]  # task indices the demonstrator failed on
+    seconds: float
+
+    def lines(self) -> list[str]:
+        return [
+            f"wrote {self.num_written} demonstrations of {self.env_name} to {self.path} in "
+            f"{self.seconds:.1f} s"
+            + (f"; the demonstrator failed on tasks {list(self.failed)}" if self.failed else "")
+        ]
+
+
+def collect_demos(
+    env: Environment,
+    num: int,
+    seed: int,
+    out: Path,
+    workers: int = 1,
+    progress: Progress = _no_progress,
+) -> DemosWritten:
+    """Run the scripted demonstrator on train tasks 0..num-1 and save the successes."""
+    from bpns.datasets import save_demonstrations
+    from bpns.demos import collect_demonstrations
+
+    failed: list[int] = []
+    t0 = time.perf_counter()
+
+    def successful():
+        for index, demo in progress(
+            collect_demonstrations(env.name, num, seed, workers), num, f"demos {env.name}", "task"
+        ):
+            if demo is None:
+                failed.append(index)
+            else:
+                yield demo
+
+    n = save_demonstrations(out, env, successful())
+    return DemosWritten(out, env.name, n, tuple(failed), time.perf_counter() - t0)
+
+
+# -- replay -------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ReplayCheck:
+    reports: tuple[ReplayReport, ...]
+
+    @property
+    def bad(self) -> list[ReplayReport]:
+        return [r for r in self.reports if not r.exact or not r.goal_reached]
+
+    @property
+    def ok(self) -> bool:
+        return not self.bad
+
+    def lines(self) -> list[str]:
+        reports, bad = self.reports, self.bad
+        worst = max((r.max_state_diff for r in reports), default=0.0)
+        out = [
+            f"replayed {len(reports)} demonstrations ({sum(r.steps for r in reports)} steps): "
+            f"max |state diff| = {worst:.3g}, "
+            f"{len(reports) - len(bad)}/{len(reports)} exact and reaching their goal"
+        ]
+        for r in bad:
+            out.append(
+                f"  demo_{r.demo}: max state diff {r.max_state_diff:.3g}, feature diff "
+                f"{r.max_feature_diff:.3g}, goal "
+                + ("reached" if r.goal_reached else "NOT reached")
+            )
+        return out
+
+
+def check_replay(
+    env: Environment, path: Path, limit: int | None = None, progress: Progress = _no_progress
+) -> ReplayCheck:
+    """Re-simulate the first ``limit`` (default: all) demonstrations of ``path``.
+    Raises ``bpns.datasets.DatasetError`` for a file that is not a readable dataset."""
+    from bpns.datasets import count_demonstrations, iter_demonstrations
+    from bpns.demos import replay
+
+    total = count_demonstrations(path)
+    n = min(total, limit or total)
+    demos = progress(iter_demonstrations(path, env, range(n)), n, "replay", "task")
+    return ReplayCheck(tuple(replay(env, d, i) for i, d in enumerate(demos)))
+
+
+# -- learning -----------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class LearnedRun:
+    learned: LearnedSkills
+    env_name: str
+    num_demos: int
+    load_seconds: float
+    out: Path
+
+    def lines(self) -> list[str]:
+        stats = self.learned.stats
+        assert stats is not None
+        return [
+            f"learned {len(self.learned.skills)} skills from {self.num_demos} demonstrations "
+            f"of {self.env_name} in {stats.total_seconds:.1f} s (+{self.load_seconds:.1f} s "
+            f"loading) -> {self.out}",
+            f"  {stats}",
+        ]
+
+
+def learn_to_directory(
+    env: Environment,
+    demos_path: Path,
+    out: Path,
+    config: LearningConfig,
+    limit: int | None = None,
+    threads: int = 1,
+    progress: Progress = _no_progress,
+    report: Callable[[str], None] | None = None,
+) -> LearnedRun:
+    """Learn skills from the first ``limit`` (default: all) demonstrations of
+    ``demos_path`` and save them to ``out`` (replacing it). Raises
+    ``bpns.datasets.DatasetError`` for a bad file and :class:`CannotLearnError` when the
+    demos cannot be learned from."""
+    from bpns.datasets import count_demonstrations, iter_demonstrations
+    from bpns.learning import learn_skills, save_skills
+
+    total = count_demonstrations(demos_path)
+    n = min(total, limit or total)
+    t0 = time.perf_counter()
+    demos = list(progress(iter_demonstrations(demos_path, env, range(n)), n, "load", "demo"))
+    load_seconds = time.perf_counter() - t0
+    import torch
+
+    torch.set_num_threads(threads)
+    try:
+        learned = learn_skills(demos, env.predicates, env.contact_predicates, config, report)
+    except ValueError as err:
+        raise CannotLearnError(f"cannot learn from {demos_path}: {err}") from None
+    save_skills(learned, out, overwrite=True, env_name=env.name)
+    return LearnedRun(learned, env.name, n, load_seconds, out)
