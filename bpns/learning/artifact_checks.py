@@ -36,6 +36,7 @@ _NET_KEY = r"(input_mean|input_std|output_mean|output_std|input_low|input_high|[
 _DIMS_KEY = r"dims/(size|state_dims|subgoal_dims|num_objects)"
 POLICY_KEYS = re.compile(rf"{_DIMS_KEY}|net/{_NET_KEY}|use_subgoals|near_scale")
 SAMPLER_KEYS = re.compile(rf"{_DIMS_KEY}|(generator|classifier)/{_NET_KEY}|max_tries")
+INTEGER_KEYS = re.compile(rf"{_DIMS_KEY}|max_tries|use_subgoals")
 
 
 # ------------------------------------------------------------------------------ files
@@ -248,6 +249,8 @@ def read_npz(path: Path, allowed: re.Pattern[str]) -> dict[str, np.ndarray]:
                 )
             with archive.open(info) as member:
                 out[key] = _read_npy(member, f"{path.name}: {key!r}")
+            if INTEGER_KEYS.fullmatch(key) and out[key].dtype.kind not in "biu":
+                raise ValueError(f"{path.name}: {key!r} must hold integers, not {out[key].dtype}")
     return out
 
 
@@ -311,6 +314,14 @@ def check_network(
     arrays = [*ws, *bs, params.input_mean, params.input_std, params.output_mean, params.output_std]
     arrays += [a for a in (params.input_low, params.input_high) if a is not None]
     _require(all(np.all(np.isfinite(a)) for a in arrays), f"{where}: weights hold NaN or inf")
+    with np.errstate(all="ignore"):  # inference folds the statistics into the weights
+        inv_std = 1.0 / params.input_std
+        folded = [ws[0] * inv_std[:, None], (params.input_mean * inv_std) @ ws[0]]
+        if params.output_std.shape == (ws[-1].shape[1],):
+            folded += [ws[-1] * params.output_std, bs[-1] * params.output_std]
+    _require(
+        all(np.all(np.isfinite(a)) for a in folded), f"{where}: weights overflow at inference"
+    )
     if params.input_low is not None:
         _require(bool(np.all(params.input_low <= params.input_high)), f"{where}: input box")
 
