@@ -142,7 +142,8 @@ def _apply_h5(f: h5py.File, mutation) -> None:
         where = groups[pick % len(groups)]
         keys = ["env", "format", "num_demos", "world", "goal", "objects", "horizon", "x"]
         if where in f:
-            f[where].attrs[keys[pick // 7 % len(keys)]] = attr_value
+            with contextlib.suppress(ValueError, TypeError):  # h5py refuses e.g. NUL in text
+                f[where].attrs[keys[pick // 7 % len(keys)]] = attr_value
     elif kind == "dataset" and names:
         name = names[pick % len(names)]
         del f[name]

@@ -251,7 +251,22 @@ def read_npz(path: Path, allowed: re.Pattern[str]) -> dict[str, np.ndarray]:
                 out[key] = _read_npy(member, f"{path.name}: {key!r}")
             if INTEGER_KEYS.fullmatch(key) and out[key].dtype.kind not in "biu":
                 raise ValueError(f"{path.name}: {key!r} must hold integers, not {out[key].dtype}")
+            rank = _rank(key)
+            if out[key].ndim != rank:
+                raise ValueError(
+                    f"{path.name}: {key!r} has shape {out[key].shape}, expected {rank} dimensions"
+                )
     return out
+
+
+def _rank(key: str) -> int:
+    """How many dimensions the array saved under ``key`` has."""
+    last = key.rsplit("/", 1)[-1]
+    if re.fullmatch(r"w\d+", last):
+        return 2
+    if last in ("size", "num_objects", "max_tries", "use_subgoals", "near_scale"):
+        return 0
+    return 1
 
 
 def _read_npy(member: Any, where: str) -> np.ndarray:

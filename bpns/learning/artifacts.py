@@ -193,6 +193,7 @@ def load_skills(
         raise
     except (
         KeyError,
+        IndexError,
         TypeError,
         ValueError,
         OSError,
