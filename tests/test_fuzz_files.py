@@ -151,7 +151,9 @@ def _apply_h5(f: h5py.File, mutation) -> None:
     elif kind == "value" and names:
         name = names[pick % len(names)]
         data = np.array(f[name])
-        if data.size:
+        if data.dtype.kind in "biu":
+            data = data.astype(np.float64)
+        if data.size and data.dtype.kind in "fc":
             flat = data.reshape(-1)
             flat[pick % flat.size] = [np.nan, np.inf, -np.inf, 1e300][pick % 4]
             del f[name]
