@@ -12,6 +12,7 @@ import pytest
 from bpns.evaluation import EvalReport, TaskOutcome
 from bpns.learning.artifacts import save_skills
 from bpns.learning.config import LearningConfig, MLPConfig
+from bpns.learning.demo_checks import DemonstrationError
 from bpns.learning.pipeline import LearnedSkills, learn_skills
 from bpns.planning.config import PlanningConfig
 from bpns.structs import Demonstration, State
@@ -37,14 +38,14 @@ def _with_nan_feature(demo: Demonstration, step: int) -> Demonstration:
 def test_learning_refuses_non_finite_actions_naming_demo_and_step(value):
     demos = toy.demos(3, seed=0)
     demos[1] = _with_nan_action(demos[1], 4, value)
-    with pytest.raises(ValueError, match="demonstration 1: action at step 4 holds NaN or inf"):
+    with pytest.raises(DemonstrationError, match="demonstration 1: action at step 4 holds NaN"):
         learn_skills(demos, toy.PREDICATES, toy.CONTACT_PREDICATES, toy.fast_config(steps=1))
 
 
 def test_learning_refuses_non_finite_features_naming_demo_and_step():
     demos = toy.demos(3, seed=0)
     demos[2] = _with_nan_feature(demos[2], 3)
-    with pytest.raises(ValueError, match="demonstration 2: features of robot at step 3"):
+    with pytest.raises(DemonstrationError, match="demonstration 2: features of robot at step 3"):
         learn_skills(demos, toy.PREDICATES, toy.CONTACT_PREDICATES, toy.fast_config(steps=1))
 
 

@@ -14,19 +14,24 @@ import numpy as np
 from bpns.structs import Demonstration
 
 
+class DemonstrationError(ValueError):
+    """Demonstrations that cannot be learned from (non-finite actions or features)."""
+
+
 def check_demonstrations(demos: Sequence[Demonstration]) -> None:
-    """Raise ValueError naming the first demo and step with a NaN/inf action or feature."""
+    """Raise :class:`DemonstrationError` naming the first demo and step with a NaN/inf
+    action or feature."""
     for i, demo in enumerate(demos):
         actions = np.asarray(demo.actions, dtype=np.float64)
         bad = np.argwhere(~np.isfinite(actions))
         if bad.size:
-            raise ValueError(
+            raise DemonstrationError(
                 f"demonstration {i}: action at step {int(bad[0][0])} holds NaN or inf"
             )
         for step, state in enumerate(demo.states):
             for obj, vec in state.data.items():
                 if not np.all(np.isfinite(vec)):
-                    raise ValueError(
+                    raise DemonstrationError(
                         f"demonstration {i}: features of {obj.name} at step {step} "
                         "hold NaN or inf"
                     )
