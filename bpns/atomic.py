@@ -1,10 +1,17 @@
-"""Write artifacts atomically: to a temporary sibling, then rename over the target."""
+"""Write artifacts atomically: to a temporary sibling, then rename over the target;
+replace whole directories so that a crash at any point loses neither version."""
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import ctypes.util
+import errno
 import os
+import shutil
+import sys
 import tempfile
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -28,3 +35,100 @@ def atomic_path(target: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+# --------------------------------------------------------------- directory replacement
+#
+# A directory cannot be renamed over a non-empty one. Where Linux offers
+# renameat2(RENAME_EXCHANGE), the new and the old directory swap names in one atomic
+# step. Elsewhere the old one is first renamed aside to ``.NAME.old-<ns>-<pid>``, then
+# the new one into place: a crash between the two renames leaves no NAME, and
+# :func:`recover_directory` (run before every replacement and by loaders that find NAME
+# missing) renames the newest such leftover back. An old directory is removed only
+# after it has been renamed to ``.NAME.trash-*``, so a crash while deleting it never
+# leaves a half-deleted ``.old-`` copy that could be "recovered".
+
+_AT_FDCWD = -100
+_RENAME_EXCHANGE = 2
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Atomically swap the names of ``a`` and ``b``; False where unsupported."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        renameat2 = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    renameat2.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p]
+    renameat2.argtypes += [ctypes.c_uint]
+    renameat2.restype = ctypes.c_int
+    if renameat2(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.EINVAL, errno.ENOSYS, errno.EOPNOTSUPP, errno.EXDEV):
+        return False
+    raise OSError(err, os.strerror(err), str(a), None, str(b))
+
+
+def _aside(target: Path, kind: str) -> Path:
+    return target.parent / f".{target.name}.{kind}-{time.time_ns()}-{os.getpid()}"
+
+
+def _discard(path: Path, target: Path) -> None:
+    """Delete ``path``, an old copy of ``target``: renamed to trash first."""
+    trash = _aside(target, "trash")
+    os.rename(path, trash)
+    shutil.rmtree(trash, ignore_errors=True)
+
+
+def recover_directory(target: str | os.PathLike) -> bool:
+    """If ``target`` is missing but an interrupted :func:`replace_directory` left the old
+    directory aside as ``.NAME.old-*``, rename the newest back; delete leftover trash.
+    Returns whether something was recovered."""
+    target = Path(target)
+    if not target.parent.is_dir():
+        return False
+    prefix = f".{target.name}."
+    olds, trash = [], []
+    for entry in target.parent.iterdir():
+        if entry.name.startswith(prefix + "old-") and entry.is_dir() and not entry.is_symlink():
+            olds.append(entry)
+        elif entry.name.startswith(prefix + "trash-"):
+            trash.append(entry)
+    for t in trash:
+        shutil.rmtree(t, ignore_errors=True)
+    recovered = False
+    if olds and not os.path.lexists(target):
+        newest = max(olds, key=lambda p: _stamp(p.name))
+        os.rename(newest, target)
+        olds.remove(newest)
+        recovered = True
+    if os.path.lexists(target):
+        for old in olds:
+            _discard(old, target)
+    return recovered
+
+
+def _stamp(name: str) -> tuple[int, str]:
+    digits = name.rsplit("old-", 1)[-1].split("-")[0]
+    return (int(digits) if digits.isdigit() else -1, name)
+
+
+def replace_directory(new: str | os.PathLike, target: str | os.PathLike) -> None:
+    """Put the complete directory ``new`` at ``target``, replacing a directory there, so
+    that at every instant (and after a crash at any point, with
+    :func:`recover_directory`) ``target`` or its ``.old-`` copy is complete."""
+    new, target = Path(new), Path(target)
+    recover_directory(target)
+    if not os.path.lexists(target):
+        os.rename(new, target)
+        return
+    if _exchange(new, target):
+        _discard(new, target)  # ``new`` now names the old directory
+        return
+    old = _aside(target, "old")
+    os.rename(target, old)
+    os.rename(new, target)
+    _discard(old, target)

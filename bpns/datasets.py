@@ -23,6 +23,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from bpns import dataset_checks as checks
 from bpns.atomic import atomic_path
 from bpns.environment import Environment
 from bpns.structs import Demonstration, GroundAtom, Object, SimState, State, Task
@@ -76,7 +77,7 @@ def load_demonstrations(
 
 def count_demonstrations(path: str | os.PathLike) -> int:
     with _open(path) as f:
-        return len(_data(f, path))
+        return len(_names(_data(f, path), path))
 
 
 def iter_demonstrations(
@@ -84,19 +85,26 @@ def iter_demonstrations(
 ) -> Iterator[Demonstration]:
     with _open(path) as f:
         data = _data(f, path)
-        if f.attrs.get("env") != env.name:
-            raise DatasetError(
-                f"{path}: holds demonstrations of {f.attrs.get('env')!r}, not {env.name!r}"
-            )
-        names = sorted(data, key=lambda k: int(k.split("_")[1]))
+        stored_env = checks.root_text_attr(f, "env")
+        if stored_env != env.name:
+            raise DatasetError(f"{path}: holds demonstrations of {stored_env!r}, not {env.name!r}")
+        names = _names(data, path)
         chosen = names if indices is None else [f"demo_{i}" for i in indices]
         for name in chosen:
             if name not in data:
                 raise DatasetError(f"{path}: has no {name} (it holds {len(names)} demos)")
             try:
-                yield _read_demo(data[name], env)
-            except (KeyError, ValueError, OSError) as err:
+                demo = _read_demo(data[name], env)
+            except (KeyError, ValueError, TypeError, OSError, RuntimeError) as err:
                 raise DatasetError(f"{path}: {name} is damaged: {err}") from None
+            yield demo
+
+
+def _names(data: h5py.Group, path: str | os.PathLike) -> list[str]:
+    try:
+        return checks.demo_names(data)
+    except (KeyError, ValueError, TypeError, OSError, RuntimeError) as err:
+        raise DatasetError(f"{path}: {err}") from None
 
 
 def _open(path: str | os.PathLike) -> h5py.File:
@@ -112,32 +120,52 @@ def _open(path: str | os.PathLike) -> h5py.File:
 
 
 def _data(f: h5py.File, path: str | os.PathLike) -> h5py.Group:
-    if f.attrs.get("format") != FORMAT or "data" not in f:
+    if checks.root_text_attr(f, "format") != FORMAT or "data" not in f:
         raise DatasetError(f"{path}: not a bpns demonstration file (format {FORMAT!r})")
-    return f["data"]
+    try:
+        return checks.member(f, "data", h5py.Group)
+    except ValueError as err:
+        raise DatasetError(f"{path}: /data: {err}") from None
 
 
 def _read_demo(g: h5py.Group, env: Environment) -> Demonstration:
+    """Read and check one demo group (see :mod:`bpns.dataset_checks`); ValueError naming
+    the first problem."""
     types = {t.name: t for t in env.types}
     preds = {p.name: p for p in env.predicates}
     objects = {}
-    for name, tname in json.loads(g.attrs["objects"]):
+    for name, tname in checks.parse_objects(checks.json_attr(g, "objects")):
         if tname not in types:
-            raise ValueError(f"unknown type {tname!r}")
+            raise ValueError(f"object {name!r} has unknown type {tname!r}")
         objects[name] = Object(name, types[tname])
-    world = env.load_world(str(g.attrs["world"]))
-    flats = np.asarray(g["states"], dtype=np.float64)
-    actions = np.asarray(g["actions"], dtype=np.float64)
-    feats = {objects[n]: np.asarray(g["features"][n], dtype=np.float64) for n in objects}
+    goal_spec = checks.parse_goal(checks.json_attr(g, "goal"))
+    horizon = checks.int_attr(g, "horizon", 1, checks.MAX_ROWS)
+    actions = checks.read_matrix(g, "actions", len(env.action_low))
+    world = env.load_world(checks.text_attr(g, "world"))
+    feat_group = checks.member(g, "features", h5py.Group)
+    if set(feat_group) != set(objects):
+        raise ValueError(
+            f"features are stored for {sorted(feat_group)}, the objects are {sorted(objects)}"
+        )
+    feats = {o: checks.read_matrix(feat_group, n, o.type.dim) for n, o in objects.items()}
+    ds = checks.member(g, "states", h5py.Dataset)
+    flats = checks.read_matrix(g, "states", ds.shape[1] if len(ds.shape) == 2 else -1)
     if len(flats) != len(actions) + 1 or any(len(v) != len(flats) for v in feats.values()):
         raise ValueError("states, features and actions have inconsistent lengths")
+    # only the environment knows its flat state size: let it load the first state
+    first = State({o: v[0] for o, v in feats.items()}, SimState(world, flats[0]))
+    env.state_from_flat(world, flats[0], first)
     states = tuple(
         State({o: v[i] for o, v in feats.items()}, SimState(world, flats[i]))
         for i in range(len(flats))
     )
-    goal = frozenset(
-        GroundAtom(preds[p], tuple(objects[o] for o in objs))
-        for p, objs in json.loads(g.attrs["goal"])
-    )
-    task = Task(init=states[0], goal=goal, horizon=int(g.attrs["horizon"]))
+    goal = set()
+    for pname, args in goal_spec:
+        if pname not in preds:
+            raise ValueError(f"goal uses unknown predicate {pname!r}")
+        if any(a not in objects for a in args):
+            raise ValueError(f"goal atom {pname}{tuple(args)} names an unknown object")
+        goal.add(GroundAtom(preds[pname], tuple(objects[o] for o in args)))  # TypeError: arity
+    task = Task(init=states[0], goal=frozenset(goal), horizon=horizon)
     return Demonstration(task=task, states=states, actions=actions)
+

@@ -3,14 +3,15 @@ and replay stored demonstrations to check that they reproduce exactly."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
 from bpns.abstraction import abstract
 from bpns.environment import Environment
+from bpns.pools import bounded_map, capped_workers, make_pool
 from bpns.structs import Demonstration, State, Task
 
 
@@ -59,13 +60,19 @@ _ENV_CACHE: dict[str, Environment] = {}
 def collect_demonstrations(
     env_name: str, n: int, seed: int, workers: int = 1, train: bool = True
 ) -> Iterator[tuple[int, Demonstration | None]]:
-    """Yield (task index, demo or None) for tasks 0..n-1 of the seeded stream, in order."""
-    jobs = [DemoJob(env_name, seed, i, train) for i in range(n)]
+    """Yield (task index, demo or None) for tasks 0..n-1 of the seeded stream, in order.
+
+    Jobs are made lazily and at most a few per worker are in flight, so memory does not
+    grow with ``n``; ``workers`` is capped at the CPU count (:mod:`bpns.pools`)."""
+    if n < 0:
+        raise ValueError(f"number of demonstrations must be >= 0, got {n}")
+    jobs = (DemoJob(env_name, seed, i, train) for i in range(n))
+    workers = capped_workers(workers)
     if workers <= 1:
         yield from map(_collect_one, jobs)
         return
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        yield from pool.map(_collect_one, jobs, chunksize=4)
+    with make_pool(workers) as pool:
+        yield from bounded_map(pool, _collect_one, jobs, in_flight=4 * workers)
 
 
 @dataclass(frozen=True)
@@ -87,8 +94,17 @@ def replay(env: Environment, demo: Demonstration, index: int = 0) -> ReplayRepor
     max_state = max_feat = 0.0
     for action, stored in zip(demo.actions, demo.states[1:], strict=True):
         state = env.simulate(state, action)
-        max_state = max(max_state, float(np.max(np.abs(state.sim.flat - stored.sim.flat))))
+        max_state = _worse(max_state, state.sim.flat - stored.sim.flat)
         for obj, v in stored.data.items():
-            max_feat = max(max_feat, float(np.max(np.abs(state.data[obj] - v))))
+            max_feat = _worse(max_feat, state.data[obj] - v)
     goal = demo.task.goal_holds(abstract(state, env.goal_predicates))
     return ReplayReport(index, len(demo.actions), max_state, max_feat, goal)
+
+
+def _worse(worst: float, diff: np.ndarray) -> float:
+    """The larger of ``worst`` and max |diff|, where a NaN anywhere counts as infinitely
+    different (Python's ``max`` would drop it, and a NaN state would replay "exactly")."""
+    d = np.abs(np.asarray(diff, dtype=np.float64))
+    if d.size and not np.all(np.isfinite(d)):
+        return math.inf
+    return max(worst, float(d.max())) if d.size else worst

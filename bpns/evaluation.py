@@ -17,7 +17,6 @@ import math
 import statistics
 import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,6 +28,7 @@ from bpns.approaches import Approach, get_approach
 from bpns.approaches import NoOracleSkillsError as NoOracleSkillsError  # re-exported
 from bpns.environment import Environment
 from bpns.planning.config import PlanningConfig
+from bpns.pools import make_pool
 from bpns.structs import Task
 
 
@@ -246,9 +246,7 @@ def run_tasks(spec: EvalSpec, indices: Sequence[int], workers: int = 1) -> Itera
         finally:
             _WORKER.clear()
         return
-    with ProcessPoolExecutor(
-        max_workers=min(workers, len(indices)), initializer=_init_worker, initargs=(spec,)
-    ) as pool:
+    with make_pool(min(workers, len(indices)), _init_worker, (spec,)) as pool:
         yield from pool.map(_run_index, indices)
 
 

@@ -176,7 +176,11 @@ class MujocoEnv(abc.ABC):
         return self._state(world, state.objects)
 
     def check_action(self, action: np.ndarray) -> np.ndarray:
-        a = np.asarray(action, dtype=np.float64)
+        try:
+            a = np.asarray(action, dtype=np.float64)
+        except (OverflowError, TypeError, ValueError) as err:  # e.g. 10**400, "x", ragged
+            msg = f"{self.name}: action is not an array of floats: {err}"
+            raise InvalidActionError(msg) from None
         low, high = self.action_low, self.action_high
         if a.shape != low.shape:
             raise InvalidActionError(

@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from ik import ControllerConfig, EndEffectorController
+from mj_envs.mjcf_safety import check_mjcf
 from mj_envs.robots.panda import PANDA, Robot, ik_model
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -34,6 +35,7 @@ class World:
     """Compiled scene + scratch MjData + controller bound to the scene's robot."""
 
     def __init__(self, xml: str, controller_config: ControllerConfig, robot: Robot = PANDA) -> None:
+        check_mjcf(xml)  # scenes also come from demo files: no <include>, no file paths
         try:
             self.model = mujoco.MjModel.from_xml_string(xml)
         except ValueError as err:
@@ -72,6 +74,8 @@ class World:
                 f"flat simulator state has shape {flat.shape}, "
                 f"this scene needs ({self.state_size},)"
             )
+        if not np.all(np.isfinite(flat)):  # MuJoCo would reset itself with a warning
+            raise ValueError("flat simulator state holds NaN or inf")
         mujoco.mj_setState(self.model, self.data, flat, STATE_SPEC)
         mujoco.mj_forward(self.model, self.data)
 

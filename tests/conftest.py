@@ -25,3 +25,13 @@ def cover_demos(cover_env):
 @pytest.fixture
 def rng():
     return np.random.default_rng(0)
+
+
+@pytest.fixture(scope="session")
+def cover_demo_file(tmp_path_factory, cover_env, cover_demos):
+    """A valid 2-demo Cover file, written once per session (copy it before mutating)."""
+    from bpns.datasets import save_demonstrations
+
+    path = tmp_path_factory.mktemp("demos") / "cover2.h5"
+    save_demonstrations(path, cover_env, cover_demos[:2])
+    return path

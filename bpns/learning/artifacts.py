@@ -28,7 +28,10 @@ from typing import Any
 
 import numpy as np
 
+from bpns.atomic import recover_directory, replace_directory
+from bpns.learning import artifact_checks as checks
 from bpns.learning.config import LearningConfig, MLPConfig
+from bpns.learning.demo_checks import check_finite_arrays
 from bpns.learning.pipeline import LearnedSkills, LearningStats, SkillStats
 from bpns.learning.policies import LearnedPolicy
 from bpns.learning.samplers import CurrentStateSampler, LearnedSampler
@@ -60,6 +63,7 @@ def save_skills(
     environment's predicates to bind them to.
     """
     target = Path(directory)
+    recover_directory(target)  # a save killed between its two renames
     if target.exists() and not overwrite:
         raise FileExistsError(f"{target} exists; pass overwrite=True to replace it")
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -90,7 +94,7 @@ def save_skills(
         (tmp / DOMAIN).write_text(
             domain_pddl(env_name or "learned", skills.types, skills.predicates, skills.operators)
         )
-        _replace_dir(tmp, target)
+        replace_directory(tmp, target)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -102,6 +106,7 @@ def _write_skill(skill: Skill, directory: Path) -> dict[str, Any]:
     if not isinstance(skill.policy, LearnedPolicy):
         raise TypeError(f"{op.name}: only LearnedPolicy can be saved, got {type(skill.policy)}")
     policy_file = f"{op.name}.policy.npz"
+    check_finite_arrays(skill.policy.to_arrays(), f"{op.name} policy")
     np.savez(directory / policy_file, **skill.policy.to_arrays())
     entry: dict[str, Any] = {
         "name": op.name,
@@ -115,6 +120,7 @@ def _write_skill(skill: Skill, directory: Path) -> dict[str, Any]:
     }
     if isinstance(skill.sampler, LearnedSampler):
         entry["sampler"] = f"{op.name}.sampler.npz"
+        check_finite_arrays(skill.sampler.to_arrays(), f"{op.name} sampler")
         np.savez(directory / entry["sampler"], **skill.sampler.to_arrays())
     elif isinstance(skill.sampler, CurrentStateSampler):
         entry["sampler"] = None
@@ -125,17 +131,6 @@ def _write_skill(skill: Skill, directory: Path) -> dict[str, Any]:
 
 def _atoms_json(atoms: Iterable[LiftedAtom]) -> list[list[Any]]:
     return [[a.predicate.name, [v.name for v in a.variables]] for a in sorted(atoms)]
-
-
-def _replace_dir(tmp: Path, target: Path) -> None:
-    """Rename ``tmp`` to ``target``, replacing an existing directory."""
-    if not target.exists():
-        os.replace(tmp, target)
-        return
-    old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
-    os.replace(target, old / target.name)
-    os.replace(tmp, target)
-    shutil.rmtree(old, ignore_errors=True)
 
 
 # ---------------------------------------------------------------------------------- load
@@ -150,11 +145,17 @@ def saved_env_name(directory: str | os.PathLike) -> str | None:
 
 def _read_index(directory: Path) -> dict[str, Any]:
     index_path = directory / INDEX
-    if not index_path.is_file():
+    if not os.path.lexists(directory):
+        try:
+            recover_directory(directory)  # a save killed between its two renames
+        except OSError:
+            pass
+    if not index_path.exists():
         raise ArtifactError(f"{directory} is not a skills directory (no {INDEX})")
     try:
-        index = json.loads(index_path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        path = checks.confined_file(directory, INDEX)
+        index = checks.parse_index(checks.read_regular_file(path, checks.MAX_INDEX_BYTES))
+    except (OSError, ValueError) as err:
         raise ArtifactError(f"{index_path}: not a readable skills index ({err})") from None
     if (
         not isinstance(index, dict)
@@ -165,6 +166,10 @@ def _read_index(directory: Path) -> dict[str, Any]:
         raise ArtifactError(
             f"{index_path}: unsupported format {got!r} (expected {FORMAT!r} version {VERSION})"
         )
+    try:
+        checks.check_index_schema(index)
+    except ValueError as err:
+        raise ArtifactError(f"{index_path}: damaged skills index: {err}") from None
     return index
 
 
@@ -187,7 +192,18 @@ def load_skills(
         )
     except ArtifactError:
         raise
-    except (KeyError, TypeError, ValueError, OSError, zipfile.BadZipFile) as err:
+    except (
+        KeyError,
+        IndexError,
+        TypeError,
+        ValueError,
+        OSError,
+        EOFError,
+        RuntimeError,
+        NotImplementedError,
+        zipfile.BadZipFile,
+        zipfile.LargeZipFile,
+    ) as err:
         # a hand-edited index, a missing or truncated weights file ...
         raise ArtifactError(
             f"{directory}: damaged skills directory ({type(err).__name__}: {err})"
@@ -261,22 +277,31 @@ def _read_skill(
         delete_effects=atoms("delete_effects"),
         order_key=entry.get("order_key"),  # absent in directories of Op<k>-named skills
     )
-    policy = LearnedPolicy.from_arrays(_npz(directory / entry["policy"]))
+    policy_path = checks.confined_file(directory, entry["policy"])
+    policy = LearnedPolicy.from_arrays(checks.read_npz(policy_path, checks.POLICY_KEYS))
     sampler: LearnedSampler | CurrentStateSampler
     if entry["sampler"] is None:
         sampler = CurrentStateSampler()
     else:
-        sampler = LearnedSampler.from_arrays(_npz(directory / entry["sampler"]))
+        sampler_path = checks.confined_file(directory, entry["sampler"])
+        sampler = LearnedSampler.from_arrays(checks.read_npz(sampler_path, checks.SAMPLER_KEYS))
+    for dims in (policy.dims, getattr(sampler, "dims", policy.dims)):
+        n = dims.num_objects
+        if n is not None and not 1 <= n <= len(op.parameters):
+            raise ArtifactError(f"{op.name}: scope of {n} objects, the operator has fewer")
+    scope = policy.dims.scope(op.parameters)
+    checks.check_skill_arrays(
+        policy,
+        sampler if isinstance(sampler, LearnedSampler) else None,
+        sum(v.type.dim for v in scope),
+        op.name,
+    )
     horizon = entry.get("horizon")
     return Skill(op, policy, sampler, None if horizon is None else int(horizon))
 
 
-def _npz(path: Path) -> dict[str, np.ndarray]:
-    with np.load(path, allow_pickle=False) as data:
-        return {k: data[k] for k in data.files}
-
-
 def _config_from_json(d: Mapping[str, Any]) -> LearningConfig:
+    checks.check_json_fields(d, LearningConfig, "config")
     nets = {k: _mlp_config(d[k]) for k in ("policy", "generator", "classifier")}
     fields = {f.name for f in dataclasses.fields(LearningConfig)}
     rest = {k: v for k, v in d.items() if k in fields and k not in nets}
@@ -284,10 +309,14 @@ def _config_from_json(d: Mapping[str, Any]) -> LearningConfig:
 
 
 def _mlp_config(d: Mapping[str, Any]) -> MLPConfig:
+    checks.check_json_fields(d, MLPConfig, "config network")
     return MLPConfig(**{**d, "hidden_sizes": tuple(d["hidden_sizes"])})
 
 
 def _stats_from_json(d: Mapping[str, Any]) -> LearningStats:
+    checks.check_json_fields(d, LearningStats, "stats")
+    for s in d["skills"]:
+        checks.check_json_fields(s, SkillStats, "stats.skills")
     return LearningStats(
         **{k: v for k, v in d.items() if k not in ("skills", "stage_seconds")},
         skills=tuple(SkillStats(**s) for s in d["skills"]),

@@ -9,6 +9,7 @@ cost is then independent of dataset size.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 
@@ -38,8 +39,12 @@ class MLPConfig:
             raise ValueError(f"invalid MLPConfig {self}")
         if any(h < 1 for h in self.hidden_sizes):
             raise ValueError(f"hidden sizes must be positive, got {self.hidden_sizes}")
-        if self.input_margin is not None and not self.input_margin >= 0.0:
-            raise ValueError(f"input_margin must be >= 0 or None, got {self.input_margin}")
+        if self.input_margin is not None and not 0.0 <= self.input_margin < math.inf:
+            raise ValueError(
+                f"input_margin must be finite and >= 0, or None; got {self.input_margin}"
+            )
+        if not (math.isfinite(self.learning_rate) and math.isfinite(self.std_floor)):
+            raise ValueError(f"learning_rate and std_floor must be finite, got {self}")
 
 
 @dataclass(frozen=True)
@@ -95,15 +100,17 @@ class LearningConfig:
             raise ValueError(
                 f"min_segment_fraction must be in [0, 1], got {self.min_segment_fraction}"
             )
-        if self.skill_horizon_factor is not None and not self.skill_horizon_factor > 0:
-            raise ValueError(f"skill_horizon_factor must be > 0, got {self.skill_horizon_factor}")
+        if self.skill_horizon_factor is not None and not 0 < self.skill_horizon_factor < math.inf:
+            raise ValueError(
+                f"skill_horizon_factor must be finite and > 0, got {self.skill_horizon_factor}"
+            )
         if self.settle_steps < 1:
             raise ValueError(f"settle_steps must be >= 1, got {self.settle_steps}")
         if self.max_rejection_tries < 1:
             raise ValueError(f"max_rejection_tries must be >= 1, got {self.max_rejection_tries}")
-        if self.near_goal_scale is not None and not self.near_goal_scale > 0.0:
-            raise ValueError(f"near_goal_scale must be > 0, got {self.near_goal_scale}")
-        if self.change_tolerance < 0.0:
+        if self.near_goal_scale is not None and not 0.0 < self.near_goal_scale < math.inf:
+            raise ValueError(f"near_goal_scale must be finite and > 0, got {self.near_goal_scale}")
+        if not 0.0 <= self.change_tolerance < math.inf:
             raise ValueError(f"change_tolerance must be >= 0, got {self.change_tolerance}")
 
 

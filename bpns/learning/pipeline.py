@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bpns.learning.config import LearningConfig
+from bpns.learning.demo_checks import check_demonstrations
 from bpns.learning.operators import SkillDataset, learn_operators
 from bpns.learning.partition import SegmentGroup, partition_segments
 from bpns.learning.policies import ScopeDims, learn_policy, scope_trajectories
@@ -131,6 +132,7 @@ def learn_skills(
     """
     config = LearningConfig() if config is None else config
     say = report or (lambda message: None)
+    check_demonstrations(demos)  # one NaN would silently poison every weight
     timer = _Timer()
     say(f"segmenting {len(demos)} demonstrations")
     with timer.stage("segment"):

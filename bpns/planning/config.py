@@ -6,6 +6,7 @@ and ``AbstractPlans=1`` is ``PlanningConfig(n_abstract=1)``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 HEURISTICS = ("lmcut", "hff", "hadd", "hmax")
@@ -74,13 +75,13 @@ class PlanningConfig:
         ):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
-        if not self.timeout > 0:
-            raise ValueError(f"timeout must be > 0, got {self.timeout}")
-        if self.nogood_atol is not None and not self.nogood_atol >= 0:
+        if not 0 < self.timeout < math.inf:  # results.json is strict JSON: no Infinity
+            raise ValueError(f"timeout must be a finite number of seconds > 0, got {self.timeout}")
+        if self.nogood_atol is not None and not 0 <= self.nogood_atol < math.inf:
             raise ValueError(f"nogood_atol must be >= 0 or None, got {self.nogood_atol}")
         if self.max_state_repeats < 0:
             raise ValueError(f"max_state_repeats must be >= 0, got {self.max_state_repeats}")
-        if self.stuck_atol < 0:
+        if not 0 <= self.stuck_atol < math.inf:
             raise ValueError(f"stuck_atol must be >= 0, got {self.stuck_atol}")
 
 

@@ -1,0 +1,118 @@
+"""Worker process pools that start small, stay bounded and die with their parent.
+
+* Workers are started by a ``forkserver`` (``spawn`` where there is none), never forked
+  from the caller: a parent that has loaded and learned from 1000 demonstrations holds
+  gigabytes, and forking it can fail with ENOMEM under strict overcommit accounting.
+* Worker counts are capped at the machine's CPU count (callers may print a note).
+* Jobs are submitted lazily with a bounded number in flight, so an enormous job stream
+  (10**22 tasks) costs constant memory.
+* A worker exits when the process that created the pool dies: ``PR_SET_PDEATHSIG`` on
+  Linux, plus a watchdog thread that polls the creator's pid everywhere.
+"""
+
+from __future__ import annotations
+
+import collections
+import ctypes
+import ctypes.util
+import multiprocessing
+import os
+import signal
+import sys
+import threading
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from typing import Any, TypeVar
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+PR_SET_PDEATHSIG = 1
+WATCHDOG_SECONDS = 1.0
+
+
+def max_workers() -> int:
+    """How many worker processes this machine can run at once."""
+    return max(1, os.cpu_count() or 1)
+
+
+def capped_workers(requested: int) -> int:
+    """``requested`` workers, at least 1 and at most :func:`max_workers`."""
+    return max(1, min(int(requested), max_workers()))
+
+
+def worker_context() -> multiprocessing.context.BaseContext:
+    """A start method that does not copy the caller's memory: forkserver, else spawn."""
+    methods = multiprocessing.get_all_start_methods()
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
+def make_pool(
+    workers: int,
+    initializer: Callable[..., None] | None = None,
+    initargs: tuple[Any, ...] = (),
+) -> ProcessPoolExecutor:
+    """A process pool of at most :func:`capped_workers` workers started by
+    :func:`worker_context`, whose workers exit when the calling process dies."""
+    return ProcessPoolExecutor(
+        max_workers=capped_workers(workers),
+        mp_context=worker_context(),
+        initializer=_init_worker,
+        initargs=(os.getpid(), initializer, initargs),
+    )
+
+
+def _init_worker(
+    creator: int, initializer: Callable[..., None] | None, initargs: tuple[Any, ...]
+) -> None:
+    die_with(creator)
+    if initializer is not None:
+        initializer(*initargs)
+
+
+def die_with(creator: int) -> None:
+    """Make this process exit when process ``creator`` (its pool's owner) dies."""
+    if sys.platform.startswith("linux"):
+        # the signal fires when the *parent* dies: the forkserver, which itself exits
+        # when the creator does
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    if not _alive(creator):
+        os._exit(1)
+    threading.Thread(target=_watch, args=(creator,), daemon=True, name="die-with").start()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, owned by someone else (pid reused): treat as gone
+        return False
+    return True
+
+
+def _watch(creator: int) -> None:
+    event = threading.Event()
+    while not event.wait(WATCHDOG_SECONDS):
+        if not _alive(creator) or os.getppid() == 1:
+            os._exit(1)
+
+
+def bounded_map(
+    pool: Executor, fn: Callable[[T], R], items: Iterable[T], in_flight: int
+) -> Iterator[R]:
+    """``map(fn, items)`` on ``pool`` in order, with at most ``in_flight`` jobs submitted
+    and not yet yielded: ``items`` is consumed lazily."""
+    pending: collections.deque[Future[R]] = collections.deque()
+    iterator = iter(items)
+    try:
+        for item in iterator:
+            pending.append(pool.submit(fn, item))
+            if len(pending) >= max(1, in_flight):
+                yield pending.popleft().result()
+        while pending:
+            yield pending.popleft().result()
+    finally:
+        for future in pending:
+            future.cancel()
