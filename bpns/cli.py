@@ -13,6 +13,7 @@ from pathlib import Path
 
 from bpns import commands, commands_learning
 from bpns.cli_common import UserError
+from bpns.experiments import cli as experiment_cli
 
 # name -> (help, configure the argument parser, run)
 COMMANDS: dict[str, tuple[str, Callable, Callable]] = {
@@ -50,6 +51,11 @@ COMMANDS: dict[str, tuple[str, Callable, Callable]] = {
         "the whole pipeline: demos -> learn -> eval -> table -> video",
         commands_learning.run_args,
         commands_learning.cmd_run,
+    ),
+    "experiment": (
+        "sweep envs x demo counts x seeds x approaches; resumable; table + figures",
+        experiment_cli.configure,
+        experiment_cli.run,
     ),
 }
 

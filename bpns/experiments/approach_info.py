@@ -1,0 +1,33 @@
+"""The one place where experiments read the approach registry.
+
+Experiments name approaches and need three facts about each: whether it plans with
+skills learned from demonstrations (so its eval cells depend on a skills cell and on a
+demo count), how it adjusts the environment's planning settings, and its label in
+tables and figures. Everything else goes through ``bpns.evaluation`` by name.
+"""
+
+from __future__ import annotations
+
+from bpns.approaches import APPROACHES, SkillSource, get_approach
+from bpns.planning.config import PlanningConfig
+
+
+def approach_names() -> tuple[str, ...]:
+    return tuple(APPROACHES)
+
+
+def uses_learned_skills(name: str) -> bool:
+    return get_approach(name).skills is SkillSource.LEARNED
+
+
+def uses_environment_skills(name: str) -> bool:
+    """Plans with the environment's hand-written skills (needs ``env.oracle_skills``)."""
+    return get_approach(name).skills is SkillSource.ORACLE
+
+
+def planning_config(name: str, base: PlanningConfig) -> PlanningConfig:
+    return get_approach(name).planning_config(base)
+
+
+def label(name: str) -> str:
+    return get_approach(name).label
