@@ -171,6 +171,29 @@ def test_ray_backend_solves_the_same_tasks_as_the_pool(resumed_sweep, tiny_cells
             assert [t["solved"] for t in ray["tasks"]] == [t["solved"] for t in pool["tasks"]]
 
 
+def test_a_directory_runs_one_sweep_at_a_time(tmp_path):
+    with CellStore(tmp_path).exclusive():
+        with pytest.raises(CellStoreError, match="in use by another running sweep"):
+            with CellStore(tmp_path).exclusive():
+                pass
+    with CellStore(tmp_path).exclusive():  # released
+        pass
+
+
+def test_temporaries_of_interrupted_cells_are_removed(tmp_path):
+    store = CellStore(tmp_path)
+    partial_dir = tmp_path / "artifacts/skills/.cover-n3-seed0.tmp-x1"
+    partial_dir.mkdir(parents=True)
+    (partial_dir / "skills.json").write_text("{")
+    partial_file = tmp_path / "artifacts/demos/.cover-seed0.h5.abc.h5"
+    partial_file.parent.mkdir()
+    partial_file.write_bytes(b"")
+    finished = tmp_path / "artifacts/demos/cover-seed1.h5"
+    finished.write_bytes(b"data")
+    assert store.remove_partial_artifacts() == [partial_file, partial_dir]
+    assert finished.exists() and not partial_dir.exists() and not partial_file.exists()
+
+
 # ------------------------------------------------------------------ synthetic cell files
 
 

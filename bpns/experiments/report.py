@@ -36,8 +36,12 @@ def write_report(
     if rows:
         written += save_figure(success_vs_demos(rows), out / FIG_DEMOS)
         written += save_figure(success_vs_time(rows, config.timeout), out / FIG_TIME)
+    from bpns.experiments.presets import PRESETS
+
+    preset = PRESETS.get(config.name)
+    overridden = "" if preset == config else " with overrides"
     text = [
-        f"# Experiment `{config.name}`",
+        f"# Experiment: preset `{config.name}`{overridden}",
         "",
         f"Produced by `{command}`.",
         "",

@@ -8,13 +8,19 @@ Layout under the root::
     artifacts/eval/<name>.npz     solved plans of an eval cell
 
 A cell file exists only once its cell has finished, and holds the settings that made
-it: a rerun reuses it only if they equal the sweep's.
+it: a rerun reuses it only if they equal the sweep's. One sweep at a time may run in a
+directory (a lock file says so); it starts by removing the temporary files that cells
+interrupted last time left behind (artifacts are written to hidden temporaries first).
 """
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import json
 import os
+import shutil
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -61,6 +67,31 @@ class CellStore:
                 "use another output directory, or delete the stored cells to recompute them"
             )
         return record
+
+    @contextlib.contextmanager
+    def exclusive(self) -> Iterator[None]:
+        """Hold the directory's lock; :class:`CellStoreError` if another sweep holds it."""
+        self.root.mkdir(parents=True, exist_ok=True)
+        with open(self.root / ".lock", "w") as lock:
+            try:
+                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise CellStoreError(f"{self.root} is in use by another running sweep") from None
+            try:
+                yield
+            finally:
+                fcntl.flock(lock, fcntl.LOCK_UN)
+
+    def remove_partial_artifacts(self) -> list[Path]:
+        """Delete the hidden temporaries of interrupted cells (call with the lock held)."""
+        removed = []
+        for path in sorted((self.root / "artifacts").glob("*/.*")):
+            if path.is_dir():
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                path.unlink(missing_ok=True)
+            removed.append(path)
+        return removed
 
     def save(self, record: dict[str, Any]) -> Path:
         path = self.record_path(record["key"])

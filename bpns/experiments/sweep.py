@@ -62,8 +62,28 @@ def run_sweep(
     """Run every cell of ``cells`` not already stored in ``store``; returns what happened.
 
     ``on_finished`` sees each record right after it is stored. Raises
-    :class:`CellStoreError` before running anything if a stored cell cannot be reused.
+    :class:`CellStoreError` before running anything if a stored cell cannot be reused
+    or another sweep is running in the same directory.
     """
+    finished = False
+    try:
+        with store.exclusive():
+            store.remove_partial_artifacts()
+            summary = _run_locked(cells, store, backend, on_finished, log, show_progress)
+        finished = True
+        return summary
+    finally:  # an interruption stops the cells still running
+        backend.close(cancel=not finished)
+
+
+def _run_locked(
+    cells: Sequence[Cell],
+    store: CellStore,
+    backend: Backend,
+    on_finished: Callable[[dict[str, Any]], None] | None,
+    log: Callable[[str], None] | None,
+    show_progress: bool | None,
+) -> SweepSummary:
     t0 = time.perf_counter()
     by_key = {c.key: c for c in cells}
     missing = sorted({d for c in cells for d in c.deps} - set(by_key))
@@ -75,7 +95,6 @@ def run_sweep(
     running: dict[int, Cell] = {}
     bar = _progress_bar(len(cells), len(done), show_progress)
     say = log or (lambda line: bar.write(line, file=sys.stdout))
-    finished_normally = False
     try:
         while waiting or running:
             still_waiting = []
@@ -105,10 +124,8 @@ def run_sweep(
             say(f"[{len(done)}/{len(cells)}] {describe_result(cell, record)}")
             if on_finished is not None:
                 on_finished(record)
-        finished_normally = True
     finally:
         bar.close()
-        backend.close(cancel=not finished_normally)
         summary.seconds = time.perf_counter() - t0
     return summary
 
