@@ -7,8 +7,11 @@ registers both under the name ``experiment``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import shlex
+import signal
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 from bpns.cli_common import UserError  # the CLI's error type: the only import from the CLI
@@ -177,7 +180,8 @@ def run(args: argparse.Namespace) -> int:
         except BackendError as err:
             raise UserError(str(err)) from None
         try:
-            summary = run_sweep(cells, store, backend)
+            with _terminate_as_exit():
+                summary = run_sweep(cells, store, backend)
         except CellStoreError as err:
             raise UserError(str(err)) from None
         write_sweep_file(out / "sweep.json", config, command, summary)
@@ -192,6 +196,22 @@ def run(args: argparse.Namespace) -> int:
         print(markdown_table(rows), end="")
     print("wrote " + ", ".join(str(p) for p in written))
     return code
+
+
+@contextlib.contextmanager
+def _terminate_as_exit() -> Iterator[None]:
+    """SIGTERM (a batch scheduler's stop) unwinds like Ctrl-C: running cells are stopped,
+    finished ones are already stored, and the same command resumes."""
+
+    def stop(signum, frame):
+        print("bpns: terminated; run the same command again to resume", file=sys.stderr)
+        raise SystemExit(128 + signum)
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _summary_line(summary) -> str:
