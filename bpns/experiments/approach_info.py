@@ -1,9 +1,10 @@
 """The one place where experiments read the approach registry.
 
-Experiments name approaches and need three facts about each: whether it plans with
+Experiments name approaches and need four facts about each: whether it plans with
 skills learned from demonstrations (so its eval cells depend on a skills cell and on a
-demo count), how it adjusts the environment's planning settings, and its label in
-tables and figures. Everything else goes through ``bpns.evaluation`` by name.
+demo count), whether it can run on a given environment, how it adjusts the
+environment's planning settings, and its label in tables and figures. Everything else
+goes through ``bpns.evaluation`` by name.
 """
 
 from __future__ import annotations
@@ -23,6 +24,12 @@ def uses_learned_skills(name: str) -> bool:
 def uses_environment_skills(name: str) -> bool:
     """Plans with the environment's hand-written skills (needs ``env.oracle_skills``)."""
     return get_approach(name).skills is SkillSource.ORACLE
+
+
+def available_on(name: str, env: object) -> bool:
+    """Can ``name`` run on ``env``? Approaches with hand-written skills need the
+    environment to declare them."""
+    return not uses_environment_skills(name) or hasattr(env, "oracle_skills")
 
 
 def planning_config(name: str, base: PlanningConfig) -> PlanningConfig:

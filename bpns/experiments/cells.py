@@ -83,10 +83,6 @@ class Cell:
         return " ".join(parts)
 
 
-def has_environment_skills(env: Environment) -> bool:
-    return hasattr(env, "oracle_skills")
-
-
 def plan_cells(config: SweepConfig, envs: Mapping[str, Environment]) -> list[Cell]:
     """All cells of ``config`` in an order that respects dependencies (demos, skills,
     evals; cheap, informative cells first). ``envs`` maps each name to an instance that
@@ -104,9 +100,7 @@ def plan_cells(config: SweepConfig, envs: Mapping[str, Environment]) -> list[Cel
             for approach in config.approaches:
                 if approach_info.uses_learned_skills(approach):
                     continue
-                if approach_info.uses_environment_skills(approach) and not (
-                    has_environment_skills(env)
-                ):
+                if not approach_info.available_on(approach, env):
                     continue
                 evals.append(_eval_cell(name, seed, None, approach, base, config, ()))
             for count in config.demo_counts:
@@ -152,11 +146,11 @@ def _eval_cell(
 
 
 def skipped_approaches(config: SweepConfig, envs: Mapping[str, Environment]) -> list[str]:
-    """(env, approach) pairs left out because the environment has no hand-written skills."""
+    """(env, approach) pairs left out because the approach cannot run on the environment
+    (it needs hand-written skills the environment does not declare)."""
     return [
         f"{approach} on {name}"
         for name in config.envs
         for approach in config.approaches
-        if approach_info.uses_environment_skills(approach)
-        and not has_environment_skills(envs[name])
+        if not approach_info.available_on(approach, envs[name])
     ]
