@@ -27,12 +27,17 @@ TINY = SweepConfig(
     seeds=(0,),
     approaches=("bpns", "oracle"),
     eval_tasks=1,
-    timeout=3.0,
+    timeout=60.0,
 )
 
 
-def _quick_learning(cell: Cell) -> Cell:
-    """The harness is under test, not learning: networks train for 100 steps."""
+def _quick(cell: Cell) -> Cell:
+    """The harness is under test, not learning or planning: networks train for 100 steps
+    and planning gives up after 2 abstract plans x 2 samples, long before the timeout
+    (so that a loaded machine cannot change which tasks are solved)."""
+    if cell.planning is not None:
+        planning = dataclasses.replace(cell.planning, n_abstract=2, n_samples=2)
+        return dataclasses.replace(cell, planning=planning)
     if cell.learning is None:
         return cell
     small = {
@@ -44,7 +49,7 @@ def _quick_learning(cell: Cell) -> Cell:
 
 @pytest.fixture(scope="module")
 def tiny_cells(cover_env):
-    return [_quick_learning(c) for c in sweep_cells(TINY, {"cover": cover_env})]
+    return [_quick(c) for c in sweep_cells(TINY, {"cover": cover_env})]
 
 
 class _Interrupt(Exception):
@@ -87,7 +92,7 @@ def test_sweep_has_demos_skills_and_eval_cells_with_dependencies(tiny_cells):
     assert by_key["skills/cover-n3-seed0"].deps == ("demos/cover-seed0",)
     assert by_key["eval/cover-bpns-n3-seed0"].deps == ("skills/cover-n3-seed0",)
     assert by_key["eval/cover-oracle-seed0"].deps == ()
-    assert by_key["eval/cover-oracle-seed0"].settings["planning"]["timeout"] == 3.0
+    assert by_key["eval/cover-oracle-seed0"].settings["planning"]["timeout"] == 60.0
 
 
 def test_interrupted_sweep_keeps_finished_cells_and_computes_only_the_rest(
@@ -123,16 +128,16 @@ def test_finished_cells_hold_results_and_point_at_their_inputs(resumed_sweep):
 
 def test_rerun_with_other_settings_is_refused(resumed_sweep, cover_env):
     store = resumed_sweep[0]
-    longer = dataclasses.replace(TINY, timeout=6.0)
-    cells = [_quick_learning(c) for c in sweep_cells(longer, {"cover": cover_env})]
-    with pytest.raises(CellStoreError, match=r"planning\.timeout: stored 3\.0, wanted 6\.0"):
+    longer = dataclasses.replace(TINY, timeout=61.0)
+    cells = [_quick(c) for c in sweep_cells(longer, {"cover": cover_env})]
+    with pytest.raises(CellStoreError, match=r"planning\.timeout: stored 60\.0, wanted 61\.0"):
         load_finished(cells, store)
 
 
 def test_cli_refuses_a_sweep_directory_made_with_other_settings(resumed_sweep, capsys):
     store = resumed_sweep[0]
     argv = ["experiment", "--preset", "smoke", "--out", str(store.root), "--demos", "3"]
-    code = cli_main([*argv, "--seeds", "0", "--tasks", "1", "--timeout", "3", "--report-only"])
+    code = cli_main([*argv, "--seeds", "0", "--tasks", "1", "--timeout", "60", "--report-only"])
     assert code == 2
     err = capsys.readouterr().err
     assert "other settings than this sweep's" in err and "learning.policy.num_steps" in err
