@@ -3,7 +3,8 @@ display, no pyplot state) and written atomically as PNG and SVG.
 
 - success vs demonstrations (the paper's Figure 3): one panel per environment, one line
   per learning approach with ± std error bars over seeds; approaches that learn nothing
-  are a horizontal line with a ± std band.
+  are a horizontal line with a ± std band. Approaches are drawn side by side at each
+  count (a small offset on the log axis) so that equal values stay visible.
 - success vs planning time: per environment, the percentage of eval tasks solved within
   t seconds, mean over seeds with a ± std band; learning approaches at their largest
   demo count.
@@ -21,6 +22,7 @@ from bpns.atomic import atomic_path
 from bpns.experiments.aggregate import Row
 
 FORMATS = ("png", "svg")
+MARKERS = ("o", "s", "^", "D", "v", "P")
 
 
 def _colours(rows: Sequence[Row]) -> dict[str, str]:
@@ -43,6 +45,7 @@ def success_vs_demos(rows: Sequence[Row]) -> Figure:
     for ax, env in zip(axes, envs, strict=True):
         mine = [r for r in rows if r.env == env]
         counts = sorted({r.demos for r in mine if r.demos is not None})
+        learners = list(dict.fromkeys(r.approach for r in mine if r.demos is not None))
         for approach in dict.fromkeys(r.approach for r in mine):
             lines = [r for r in mine if r.approach == approach]
             label = f"{lines[0].label} ({len(lines[0].seeds)} seeds)"
@@ -52,14 +55,16 @@ def success_vs_demos(rows: Sequence[Row]) -> Figure:
                 ax.axhline(s.mean, color=colours[approach], ls="--", label=label)
                 ax.axhspan(s.mean - s.std, s.mean + s.std, color=colours[approach], alpha=0.12)
                 continue
-            x = [r.demos for r in lines]
+            # approaches side by side at each count, so equal values do not hide each other
+            i = learners.index(approach)
+            dodge = float(np.exp(0.04 * (i - (len(learners) - 1) / 2)))
             stats = [r.solved_percent for r in lines]
             ax.errorbar(
-                x,
+                [r.demos * dodge for r in lines],  # type: ignore[operator]
                 [s.mean for s in stats],
                 yerr=[s.std for s in stats],
                 color=colours[approach],
-                marker="o",
+                marker=MARKERS[i % len(MARKERS)],
                 capsize=4,
                 label=label,
             )

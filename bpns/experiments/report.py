@@ -52,6 +52,9 @@ def write_report(
         "learning pipeline alone.",
         "",
     ]
+    last_run = _last_run(out / "sweep.json")
+    if last_run:
+        text += [last_run, ""]
     if missing:
         text += [f"**{missing} eval cells are not finished; their rows are incomplete.**", ""]
     text += [table]
@@ -72,3 +75,15 @@ def write_report(
         payload["rows"] = [r.to_json() for r in rows]
         tmp.write_text(json.dumps(payload, indent=1) + "\n")
     return rows, [md, js, *written]
+
+
+def _last_run(sweep_file: Path) -> str | None:
+    """One line on the last run in this directory (from its ``sweep.json``), if any."""
+    try:
+        data = json.loads(sweep_file.read_text())
+        return (
+            f"Last run: {data['computed']} of {data['cells']} cells computed "
+            f"({data['reused']} reused) in {data['seconds']:.0f} s."
+        )
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
