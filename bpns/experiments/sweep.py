@@ -9,6 +9,7 @@ at complete artifacts, and an interrupted sweep loses at most the cells that wer
 from __future__ import annotations
 
 import datetime
+import json
 import os
 import platform
 import sys
@@ -19,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bpns.atomic import atomic_path
 from bpns.environment import Environment
 from bpns.experiments.backends import Backend
 from bpns.experiments.cells import DEMOS, EVAL, SKILLS, Cell, plan_cells
@@ -218,10 +220,6 @@ def _progress_bar(total: int, initial: int, show: bool | None):
 
 def write_sweep_file(path: Path, config: SweepConfig, command: str, summary: SweepSummary) -> None:
     """What was asked for and how the last run went (for the record; results are in cells)."""
-    import json
-
-    from bpns.atomic import atomic_path
-
     data = {
         "config": config.to_json(),
         "command": command,
