@@ -8,7 +8,7 @@ OUT    ?= outputs/cover
 N      ?= 50
 TASKS  ?= 10
 
-.PHONY: run test bench results lint clean system-deps
+.PHONY: run test bench results experiment lint clean system-deps
 
 $(STAMP): pyproject.toml
 	@$(MAKE) --no-print-directory system-deps
@@ -53,6 +53,12 @@ results: $(STAMP)
 	  esac; \
 	  $(PY) scripts/make_results.py --env $$e $$extra || exit 1; \
 	done
+
+# A resumable sweep (docs/experiments/README.md); `make experiment PRESET=smoke`.
+PRESET  ?= small
+WORKERS ?= 2
+experiment: $(STAMP)
+	$(VENV)/bin/bpns experiment --preset $(PRESET) --workers $(WORKERS)
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check bpns ik mj_envs scripts tests

@@ -1,4 +1,4 @@
-"""The ``bpns`` command line: demos, replay, render, learn, skills, eval, run.
+"""The ``bpns`` command line: demos, replay, render, learn, skills, eval, run, experiment.
 
 One module per command, each with ``HELP``, ``configure(parser)`` and ``run(args)``;
 none imports another (shared helpers live in :mod:`bpns.cli.common`, the work itself in
@@ -14,7 +14,7 @@ import sys
 from collections.abc import Sequence
 from types import ModuleType
 
-from bpns.cli import demos, learn, render, replay, run, skills
+from bpns.cli import demos, experiment, learn, render, replay, run, skills
 from bpns.cli import eval as eval_
 from bpns.cli.common import UserError
 
@@ -26,6 +26,7 @@ COMMANDS: dict[str, ModuleType] = {
     "skills": skills,
     "eval": eval_,
     "run": run,
+    "experiment": experiment,
 }
 
 

@@ -1,0 +1,226 @@
+"""``bpns experiment``: run a sweep (or resume it) and write its table and figures.
+
+``configure`` sets up the sub-command's arguments and ``run`` executes it; the sweep
+itself lives in :mod:`bpns.experiments`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import shlex
+import signal
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+from bpns.cli.common import UserError
+from bpns.experiments.approach_info import approach_names
+from bpns.experiments.presets import PRESETS, SweepConfig, SweepConfigError
+
+HELP = "sweep environments x demo counts x seeds x approaches; mean ± std table and figures"
+
+
+def _whole(text: str, least: int) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < least:
+        raise argparse.ArgumentTypeError(f"expected a number >= {least}, got {value}")
+    return value
+
+
+def _count(text: str) -> int:
+    return _whole(text, 1)
+
+
+def _seed(text: str) -> int:
+    return _whole(text, 0)
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a number of seconds > 0, got {text}")
+    return value
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    presets = ", ".join(
+        f"{p.name} ({len(p.envs)} envs x demos {list(p.demo_counts)} x {len(p.seeds)} seeds, "
+        f"{p.eval_tasks} eval tasks, {p.timeout:g} s)"
+        for p in PRESETS.values()
+    )
+    parser.add_argument(
+        "--preset", choices=list(PRESETS), default="small", help=f"what to sweep: {presets}"
+    )
+    parser.add_argument(
+        "--out", type=Path, help="sweep directory (default: outputs/experiments/<preset>)"
+    )
+    parser.add_argument("--env", nargs="+", help="environments (overrides the preset)")
+    parser.add_argument("--demos", nargs="+", type=_count, help="demo counts (overrides)")
+    parser.add_argument("--seeds", nargs="+", type=_seed, help="seeds, e.g. 0 1 2 (overrides)")
+    parser.add_argument(
+        "--approach",
+        nargs="+",
+        help=f"approaches (overrides the preset); known: {', '.join(approach_names())}",
+    )
+    parser.add_argument("-n", "--tasks", type=_count, help="eval tasks per seed (overrides)")
+    parser.add_argument("--timeout", type=_seconds, help="planning seconds per task (overrides)")
+    parser.add_argument(
+        "--workers",
+        type=_count,
+        default=1,
+        help="cells run at once (pool backend, or a local Ray instance's CPUs); default 1",
+    )
+    parser.add_argument("--backend", choices=("pool", "ray"), default="pool")
+    parser.add_argument(
+        "--ray-address",
+        help="address of a running Ray cluster ('auto' on one of its nodes, or "
+        "ray://HEAD:10001); without it --backend ray starts a local instance",
+    )
+    parser.add_argument(
+        "--report-only",
+        action="store_true",
+        help="only rebuild the table and figures from the cells finished so far",
+    )
+    parser.add_argument(
+        "--dry-run", action="store_true", help="list the cells and which are finished; run none"
+    )
+
+
+def sweep_config(args: argparse.Namespace) -> SweepConfig:
+    from bpns.registry import environment_names
+
+    try:
+        config = PRESETS[args.preset].with_overrides(
+            envs=args.env,
+            demo_counts=args.demos,
+            seeds=args.seeds,
+            approaches=args.approach,
+            eval_tasks=args.tasks,
+            timeout=args.timeout,
+        )
+    except SweepConfigError as err:
+        raise UserError(str(err)) from None
+    unknown = [e for e in config.envs if e not in environment_names()]
+    if unknown:
+        raise UserError(
+            f"unknown environment(s) {unknown}; known: {', '.join(environment_names())}"
+        )
+    unknown = [a for a in config.approaches if a not in approach_names()]
+    if unknown:
+        raise UserError(f"unknown approach(es) {unknown}; known: {', '.join(approach_names())}")
+    return config
+
+
+def command_line(config: SweepConfig, out: Path, args: argparse.Namespace) -> str:
+    """The full command that reproduces ``config`` whatever the preset's defaults become."""
+    argv = ["bpns", "experiment", "--preset", config.name, "--out", str(out)]
+    argv += ["--env", *config.envs, "--demos", *map(str, config.demo_counts)]
+    argv += ["--seeds", *map(str, config.seeds), "--approach", *config.approaches]
+    argv += ["--tasks", str(config.eval_tasks), "--timeout", f"{config.timeout:g}"]
+    argv += ["--workers", str(args.workers)]
+    if args.backend != "pool":
+        argv += ["--backend", args.backend]
+    if args.ray_address:
+        argv += ["--ray-address", args.ray_address]
+    return shlex.join(argv)
+
+
+def run(args: argparse.Namespace) -> int:
+    from bpns.experiments.backends import BackendError, PoolBackend, RayBackend
+    from bpns.experiments.cells import skipped_approaches
+    from bpns.experiments.report import write_report
+    from bpns.experiments.store import CellStore, CellStoreError
+    from bpns.experiments.sweep import (
+        load_finished,
+        make_environments,
+        run_sweep,
+        sweep_cells,
+        write_sweep_file,
+    )
+
+    if args.ray_address and args.backend != "ray":
+        raise UserError("--ray-address needs --backend ray")
+    config = sweep_config(args)
+    out: Path = args.out or Path("outputs") / "experiments" / config.name
+    envs = make_environments(config.envs)
+    cells = sweep_cells(config, envs)
+    store = CellStore(out)
+    command = command_line(config, out, args)
+    for skipped in skipped_approaches(config, envs):
+        print(f"note: {skipped} left out: the environment declares no hand-written skills")
+    try:
+        finished = load_finished(cells, store)
+    except CellStoreError as err:
+        raise UserError(str(err)) from None
+    kinds = {k: sum(c.kind == k for c in cells) for k in dict.fromkeys(c.kind for c in cells)}
+    print(
+        f"{config.name}: {len(cells)} cells ("
+        + ", ".join(f"{n} {k}" for k, n in kinds.items())
+        + f"), {len(finished)} already finished in {out}/",
+        flush=True,
+    )
+    if args.dry_run:
+        for cell in cells:
+            print(f"  {'done' if cell.key in finished else 'todo'}  {cell.key}")
+        return 0
+    del envs  # the workers build their own; the scheduler needs them no more
+    code = 0
+    if not args.report_only:
+        try:
+            backend = (
+                RayBackend(args.ray_address, None if args.ray_address else args.workers)
+                if args.backend == "ray"
+                else PoolBackend(args.workers)
+            )
+        except BackendError as err:
+            raise UserError(str(err)) from None
+        try:
+            with _terminate_as_exit():
+                summary = run_sweep(cells, store, backend)
+        except CellStoreError as err:
+            raise UserError(str(err)) from None
+        write_sweep_file(out / "sweep.json", config, command, summary)
+        print(_summary_line(summary), flush=True)
+        for key, error in summary.failed.items():
+            print(f"failed: {key}\n{error}", file=sys.stderr)
+        code = 0 if summary.complete else 1
+    rows, written = write_report(out, cells, store, config, command)
+    if rows:
+        from bpns.experiments.aggregate import markdown_table
+
+        print(markdown_table(rows), end="")
+    print("wrote " + ", ".join(str(p) for p in written))
+    return code
+
+
+@contextlib.contextmanager
+def _terminate_as_exit() -> Iterator[None]:
+    """SIGTERM (a batch scheduler's stop) unwinds like Ctrl-C: running cells are stopped,
+    finished ones are already stored, and the same command resumes."""
+
+    def stop(signum, frame):
+        print("bpns: terminated; run the same command again to resume", file=sys.stderr)
+        raise SystemExit(128 + signum)
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _summary_line(summary) -> str:
+    text = (
+        f"{len(summary.computed)} cells computed, {len(summary.reused)} reused in "
+        f"{summary.seconds:.0f} s"
+    )
+    if summary.failed or summary.blocked:
+        text += f"; {len(summary.failed)} failed, {len(summary.blocked)} not run because of them"
+    return text

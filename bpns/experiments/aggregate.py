@@ -1,0 +1,166 @@
+"""Means and standard deviations over seeds, per (environment, approach, demo count).
+
+Each seed is one replicate: its own demonstrations, skills and eval tasks. The spread
+reported is the population standard deviation of the per-seed values (``ddof=0``, as
+``numpy.std``), so a single seed shows ``± 0.0``. Times are over each seed's solved
+tasks; a seed that solved nothing has no time and is left out of the time columns (the
+``seeds`` column counts all seeds).
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from bpns.experiments import approach_info
+
+
+@dataclass(frozen=True)
+class Stat:
+    """Mean and population std of the values that exist; ``n`` of them."""
+
+    mean: float | None
+    std: float | None
+    n: int
+
+    @classmethod
+    def of(cls, values: Iterable[float | None]) -> Stat:
+        present = [float(v) for v in values if v is not None and math.isfinite(v)]
+        if not present:
+            return cls(None, None, 0)
+        return cls(statistics.fmean(present), statistics.pstdev(present), len(present))
+
+    def format(self, spec: str) -> str:
+        if self.mean is None or self.std is None:
+            return "–"
+        return f"{format(self.mean, spec)} ± {format(self.std, spec)}"
+
+    def to_json(self) -> dict[str, Any]:
+        return {"mean": self.mean, "std": self.std, "n": self.n}
+
+
+@dataclass(frozen=True)
+class SeedResult:
+    """One eval cell's numbers."""
+
+    seed: int
+    num_tasks: int
+    solved_percent: float
+    median_seconds: float | None
+    mean_seconds: float | None
+    nodes_created: float
+    learning_seconds: float | None
+    solved_seconds: tuple[float, ...]  # test time of every solved task
+
+    @classmethod
+    def from_record(cls, record: dict[str, Any]) -> SeedResult:
+        r = record["result"]
+        return cls(
+            seed=record["settings"]["seed"],
+            num_tasks=r["num_tasks"],
+            solved_percent=r["solved_percent"],
+            median_seconds=r["median_seconds"],
+            mean_seconds=r["mean_seconds"],
+            nodes_created=r["mean_nodes_created"],
+            learning_seconds=r.get("learning_seconds"),
+            solved_seconds=tuple(t["seconds"] for t in r["tasks"] if t["solved"]),
+        )
+
+    def fraction_solved_within(self, seconds: float) -> float:
+        return sum(t <= seconds for t in self.solved_seconds) / max(1, self.num_tasks)
+
+
+@dataclass(frozen=True)
+class Row:
+    env: str
+    approach: str
+    demos: int | None  # None: the approach learns nothing
+    seeds: tuple[SeedResult, ...]
+
+    @property
+    def label(self) -> str:
+        return approach_info.label(self.approach)
+
+    @property
+    def solved_percent(self) -> Stat:
+        return Stat.of(s.solved_percent for s in self.seeds)
+
+    @property
+    def median_seconds(self) -> Stat:
+        return Stat.of(s.median_seconds for s in self.seeds)
+
+    @property
+    def mean_seconds(self) -> Stat:
+        return Stat.of(s.mean_seconds for s in self.seeds)
+
+    @property
+    def nodes_created(self) -> Stat:
+        return Stat.of(s.nodes_created for s in self.seeds)
+
+    @property
+    def learning_seconds(self) -> Stat:
+        return Stat.of(s.learning_seconds for s in self.seeds)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "env": self.env,
+            "approach": self.approach,
+            "label": self.label,
+            "demos": self.demos,
+            "seeds": [s.seed for s in self.seeds],
+            "eval_tasks": [s.num_tasks for s in self.seeds],
+            "solved_percent": self.solved_percent.to_json(),
+            "median_seconds": self.median_seconds.to_json(),
+            "mean_seconds": self.mean_seconds.to_json(),
+            "nodes_created": self.nodes_created.to_json(),
+            "learning_seconds": self.learning_seconds.to_json(),
+        }
+
+
+def aggregate(eval_records: Iterable[dict[str, Any]]) -> list[Row]:
+    """One row per (env, approach, demo count), in the order first seen for env and
+    approach and by increasing demo count; seeds sorted."""
+    groups: dict[tuple[str, str, int | None], list[SeedResult]] = {}
+    env_order: dict[str, int] = {}
+    approach_order: dict[str, int] = {}
+    for record in eval_records:
+        s = record["settings"]
+        env_order.setdefault(s["env"], len(env_order))
+        approach_order.setdefault(s["approach"], len(approach_order))
+        key = (s["env"], s["approach"], s["demo_count"])
+        groups.setdefault(key, []).append(SeedResult.from_record(record))
+    keys = sorted(
+        groups,
+        key=lambda k: (env_order[k[0]], approach_order[k[1]], -1 if k[2] is None else k[2]),
+    )
+    return [
+        Row(env, approach, demos, tuple(sorted(groups[(env, approach, demos)], key=_seed)))
+        for env, approach, demos in keys
+    ]
+
+
+def _seed(result: SeedResult) -> int:
+    return result.seed
+
+
+TABLE_HEADER = (
+    "| Environment | Approach | Demos | Seeds | Solved (%) | Median time (s) | Mean time (s) "
+    "| Nodes created | Learning time (s) |\n"
+    "|---|---|---:|---:|---:|---:|---:|---:|---:|"
+)
+
+
+def markdown_table(rows: Sequence[Row]) -> str:
+    """Mean ± std over seeds of each row's per-seed values."""
+    lines = [TABLE_HEADER]
+    for row in rows:
+        lines.append(
+            f"| {row.env} | {row.label} | {'–' if row.demos is None else row.demos} "
+            f"| {len(row.seeds)} | {row.solved_percent.format('.1f')} "
+            f"| {row.median_seconds.format('.2f')} | {row.mean_seconds.format('.2f')} "
+            f"| {row.nodes_created.format('.1f')} | {row.learning_seconds.format('.1f')} |"
+        )
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,41 @@
+"""The one place where experiments read the approach registry.
+
+Experiments name approaches and need four facts about each: whether it plans with
+skills learned from demonstrations (so its eval cells depend on a skills cell and on a
+demo count), whether it can run on a given environment, how it adjusts the
+environment's planning settings, and its label in tables and figures. Everything else
+goes through ``bpns.evaluation`` by name.
+"""
+
+from __future__ import annotations
+
+from bpns.approaches import SkillSource, get_approach
+from bpns.approaches import approach_names as _registered
+from bpns.planning.config import PlanningConfig
+
+
+def approach_names() -> tuple[str, ...]:
+    return tuple(_registered())
+
+
+def uses_learned_skills(name: str) -> bool:
+    return get_approach(name).skills is SkillSource.LEARNED
+
+
+def uses_environment_skills(name: str) -> bool:
+    """Plans with the environment's hand-written skills (needs ``env.oracle_skills``)."""
+    return get_approach(name).skills is SkillSource.ORACLE
+
+
+def available_on(name: str, env: object) -> bool:
+    """Can ``name`` run on ``env``? Approaches with hand-written skills need the
+    environment to declare them."""
+    return not uses_environment_skills(name) or hasattr(env, "oracle_skills")
+
+
+def planning_config(name: str, base: PlanningConfig) -> PlanningConfig:
+    return get_approach(name).planning_config(base)
+
+
+def label(name: str) -> str:
+    return get_approach(name).label

@@ -1,0 +1,129 @@
+"""Where cells run: a local process pool (default) or a Ray cluster.
+
+Both run :func:`bpns.experiments.work.run_cell_safely` on a :class:`CellJob` and hand
+back ``(token, CellOutcome)`` pairs as cells finish, in completion order. A cell runs
+in a fresh worker process: the pool's workers start from a forkserver (not forked from
+the scheduler, which may hold a large environment) and each is replaced after one cell,
+so the memory of a learning cell goes back to the system before the next cell starts.
+"""
+
+from __future__ import annotations
+
+import itertools
+import multiprocessing
+import queue
+from typing import Any, Protocol
+
+from bpns.experiments.work import CellJob, CellOutcome, run_cell_safely
+
+
+class BackendError(RuntimeError):
+    """A backend that cannot start (Ray missing, cluster unreachable)."""
+
+
+class Backend(Protocol):
+    def submit(self, job: CellJob) -> int: ...
+
+    def next_finished(self) -> tuple[int, CellOutcome]: ...
+
+    def close(self, cancel: bool) -> None: ...
+
+
+class PoolBackend:
+    """``workers`` cells at a time in local processes."""
+
+    def __init__(self, workers: int = 1, start_method: str = "forkserver") -> None:
+        if workers < 1:
+            raise ValueError(f"workers must be >= 1, got {workers}")
+        ctx = multiprocessing.get_context(start_method)
+        self._pool = ctx.Pool(processes=workers, maxtasksperchild=1)
+        self._finished: queue.Queue[tuple[int, CellOutcome | BaseException]] = queue.Queue()
+        self._tokens = itertools.count()
+        self._pending = 0
+
+    def submit(self, job: CellJob) -> int:
+        token = next(self._tokens)
+        self._pool.apply_async(
+            run_cell_safely,
+            (job,),
+            callback=lambda outcome: self._finished.put((token, outcome)),
+            error_callback=lambda err: self._finished.put((token, err)),
+        )
+        self._pending += 1
+        return token
+
+    def next_finished(self) -> tuple[int, CellOutcome]:
+        if self._pending == 0:
+            raise RuntimeError("no cell is running")
+        while True:
+            try:  # a timeout keeps Ctrl-C responsive
+                token, outcome = self._finished.get(timeout=0.5)
+                break
+            except queue.Empty:
+                continue
+        self._pending -= 1
+        if isinstance(outcome, BaseException):  # the worker died or could not unpickle
+            outcome = CellOutcome(None, f"{type(outcome).__name__}: {outcome}", 0.0, "")
+        return token, outcome
+
+    def close(self, cancel: bool) -> None:
+        if cancel:
+            self._pool.terminate()
+        else:
+            self._pool.close()
+        self._pool.join()
+
+
+class RayBackend:
+    """Cells as Ray tasks (one CPU each) on the cluster at ``address`` (``auto`` on a
+    node of a running cluster, ``ray://head:10001`` from outside it), or on a local Ray
+    instance with ``num_cpus`` CPUs when no address is given. Every node needs this
+    package installed and the sweep's output directory at the same path."""
+
+    def __init__(self, address: str | None = None, num_cpus: int | None = None) -> None:
+        try:
+            import ray
+        except ImportError:
+            raise BackendError(
+                "the ray backend needs Ray: pip install 'bpns[ray]' (or 'ray>=2.9')"
+            ) from None
+        self._ray = ray
+        self._owns_ray = not ray.is_initialized()
+        if self._owns_ray:
+            try:
+                if address is None:
+                    ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False)
+                else:
+                    ray.init(address=address, log_to_driver=False)
+            except (ConnectionError, RuntimeError, ValueError) as err:
+                raise BackendError(f"cannot connect to Ray at {address!r}: {err}") from None
+        self._remote = ray.remote(num_cpus=1, max_calls=1)(run_cell_safely)
+        self._running: dict[Any, int] = {}
+        self._tokens = itertools.count()
+
+    def submit(self, job: CellJob) -> int:
+        token = next(self._tokens)
+        self._running[self._remote.remote(job)] = token
+        return token
+
+    def next_finished(self) -> tuple[int, CellOutcome]:
+        if not self._running:
+            raise RuntimeError("no cell is running")
+        ready: list[Any] = []
+        while not ready:  # a timeout keeps Ctrl-C responsive
+            ready, _ = self._ray.wait(list(self._running), num_returns=1, timeout=0.5)
+        ref = ready[0]
+        token = self._running.pop(ref)
+        try:
+            outcome = self._ray.get(ref)
+        except self._ray.exceptions.RayError as err:  # the worker or its node died
+            outcome = CellOutcome(None, f"{type(err).__name__}: {err}", 0.0, "")
+        return token, outcome
+
+    def close(self, cancel: bool) -> None:
+        if cancel:
+            for ref in self._running:
+                self._ray.cancel(ref, force=True)
+        self._running.clear()
+        if self._owns_ray:
+            self._ray.shutdown()

@@ -1,0 +1,156 @@
+"""The cells of a sweep and their dependencies.
+
+``demos(env, seed)`` collects the largest demo count once; ``skills(env, count, seed)``
+learns from the first ``count`` train tasks of it; ``eval(env, approach, count, seed)``
+plans the seed's eval tasks with those skills. Approaches that plan with the
+environment's own skills do not depend on demonstrations: one eval cell per (env, seed).
+
+A cell's *settings* are everything that decides its result; a stored cell is reused
+only if its settings equal the sweep's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from bpns.environment import Environment
+from bpns.experiments import approach_info
+from bpns.experiments.presets import SweepConfig
+from bpns.learning.config import LearningConfig, learning_config_for
+from bpns.planning.config import PlanningConfig, planning_config_for
+
+DEMOS, SKILLS, EVAL = "demos", "skills", "eval"
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One unit of work. ``count`` is the number of train tasks collected (demos), the
+    demo count learned from (skills, learned eval) or None (eval with env skills)."""
+
+    kind: str
+    env: str
+    seed: int
+    count: int | None
+    approach: str | None = None
+    deps: tuple[str, ...] = ()  # keys of the cells whose results this one reads
+    learning: LearningConfig | None = None  # skills cells
+    planning: PlanningConfig | None = None  # eval cells
+    eval_tasks: int | None = None  # eval cells
+
+    @property
+    def key(self) -> str:
+        """Unique in a sweep, usable as a relative file path (``kind/name``)."""
+        count = "" if self.count is None else f"-n{self.count}"
+        if self.kind == EVAL:
+            return f"{EVAL}/{self.env}-{self.approach}{count}-seed{self.seed}"
+        if self.kind == SKILLS:
+            return f"{SKILLS}/{self.env}{count}-seed{self.seed}"
+        return f"{DEMOS}/{self.env}-seed{self.seed}"
+
+    @property
+    def settings(self) -> dict[str, Any]:
+        """JSON-normalised (tuples become lists) so it compares equal to a stored copy."""
+        s: dict[str, Any] = {"kind": self.kind, "env": self.env, "seed": self.seed}
+        if self.kind == DEMOS:
+            s["train_tasks"] = self.count
+        elif self.kind == SKILLS:
+            s["demo_count"] = self.count
+            s["learning"] = dataclasses.asdict(self.learning)  # type: ignore[arg-type]
+        else:
+            s.update(
+                approach=self.approach,
+                demo_count=self.count,
+                eval_tasks=self.eval_tasks,
+                task_seed=self.seed,
+                planner_seed=self.seed,
+                planning=dataclasses.asdict(self.planning),  # type: ignore[arg-type]
+            )
+        return json.loads(json.dumps(s))
+
+    def describe(self) -> str:
+        parts = [self.kind, self.env]
+        if self.approach is not None:
+            parts.append(approach_info.label(self.approach))
+        if self.kind == DEMOS:
+            parts.append(f"{self.count} tasks")
+        elif self.count is not None:
+            parts.append(f"{self.count} demos")
+        parts.append(f"seed {self.seed}")
+        return " ".join(parts)
+
+
+def plan_cells(config: SweepConfig, envs: Mapping[str, Environment]) -> list[Cell]:
+    """All cells of ``config`` in an order that respects dependencies (demos, skills,
+    evals; cheap, informative cells first). ``envs`` maps each name to an instance that
+    supplies the environment's learning and planning defaults. Approaches needing
+    hand-written skills are left out for environments that declare none."""
+    demos: list[Cell] = []
+    skills: list[Cell] = []
+    evals: list[Cell] = []
+    for name in config.envs:
+        env = envs[name]
+        base = planning_config_for(env, timeout=config.timeout)
+        for seed in config.seeds:
+            demo_cell = Cell(DEMOS, name, seed, config.max_demos)
+            demos.append(demo_cell)
+            for approach in config.approaches:
+                if approach_info.uses_learned_skills(approach):
+                    continue
+                if not approach_info.available_on(approach, env):
+                    continue
+                evals.append(_eval_cell(name, seed, None, approach, base, config, ()))
+            for count in config.demo_counts:
+                skill_cell = Cell(
+                    SKILLS,
+                    name,
+                    seed,
+                    count,
+                    deps=(demo_cell.key,),
+                    learning=learning_config_for(env, seed=seed),
+                )
+                if any(approach_info.uses_learned_skills(a) for a in config.approaches):
+                    skills.append(skill_cell)
+                for approach in config.approaches:
+                    if approach_info.uses_learned_skills(approach):
+                        evals.append(
+                            _eval_cell(name, seed, count, approach, base, config, (skill_cell.key,))
+                        )
+    if not skills:  # nothing learns: no demonstrations needed
+        demos = []
+    return demos + skills + evals
+
+
+def _eval_cell(
+    env: str,
+    seed: int,
+    count: int | None,
+    approach: str,
+    base: PlanningConfig,
+    config: SweepConfig,
+    deps: tuple[str, ...],
+) -> Cell:
+    return Cell(
+        EVAL,
+        env,
+        seed,
+        count,
+        approach=approach,
+        deps=deps,
+        planning=approach_info.planning_config(approach, base),
+        eval_tasks=config.eval_tasks,
+    )
+
+
+def skipped_approaches(config: SweepConfig, envs: Mapping[str, Environment]) -> list[str]:
+    """(env, approach) pairs left out because the approach cannot run on the environment
+    (it needs hand-written skills the environment does not declare)."""
+    return [
+        f"{approach} on {name}"
+        for name in config.envs
+        for approach in config.approaches
+        if not approach_info.available_on(approach, envs[name])
+    ]

@@ -1,0 +1,124 @@
+"""The paper's figures from aggregated rows, drawn with matplotlib's Agg canvas (no
+display, no pyplot state) and written atomically as PNG and SVG.
+
+- success vs demonstrations (the paper's Figure 3): one panel per environment, one line
+  per learning approach with ± std error bars over seeds; approaches that learn nothing
+  are a horizontal line with a ± std band. Approaches are drawn side by side at each
+  count (a small offset on the log axis) so that equal values stay visible.
+- success vs planning time: per environment, the percentage of eval tasks solved within
+  t seconds, mean over seeds with a ± std band; learning approaches at their largest
+  demo count.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from bpns.atomic import atomic_path
+from bpns.experiments.aggregate import Row
+
+FORMATS = ("png", "svg")
+MARKERS = ("o", "s", "^", "D", "v", "P")
+
+
+def _colours(rows: Sequence[Row]) -> dict[str, str]:
+    """The same colour for an approach in every panel and figure."""
+    approaches = list(dict.fromkeys(r.approach for r in rows))
+    return {a: f"C{i % 10}" for i, a in enumerate(approaches)}
+
+
+def _panels(n: int, title: str) -> tuple[Figure, list]:
+    fig = Figure(figsize=(4.2 * n + 0.6, 3.6), layout="constrained")
+    axes = fig.subplots(1, n, squeeze=False)[0]
+    fig.suptitle(title)
+    return fig, list(axes)
+
+
+def success_vs_demos(rows: Sequence[Row]) -> Figure:
+    envs = list(dict.fromkeys(r.env for r in rows))
+    colours = _colours(rows)
+    fig, axes = _panels(len(envs), "Success vs demonstrations (mean ± std over seeds)")
+    for ax, env in zip(axes, envs, strict=True):
+        mine = [r for r in rows if r.env == env]
+        counts = sorted({r.demos for r in mine if r.demos is not None})
+        learners = list(dict.fromkeys(r.approach for r in mine if r.demos is not None))
+        for approach in dict.fromkeys(r.approach for r in mine):
+            lines = [r for r in mine if r.approach == approach]
+            label = f"{lines[0].label} ({len(lines[0].seeds)} seeds)"
+            if lines[0].demos is None:  # learns nothing: a level across the panel
+                s = lines[0].solved_percent
+                assert s.mean is not None and s.std is not None
+                ax.axhline(s.mean, color=colours[approach], ls="--", label=label)
+                ax.axhspan(s.mean - s.std, s.mean + s.std, color=colours[approach], alpha=0.12)
+                continue
+            # approaches side by side at each count, so equal values do not hide each other
+            i = learners.index(approach)
+            dodge = float(np.exp(0.04 * (i - (len(learners) - 1) / 2)))
+            stats = [r.solved_percent for r in lines]
+            ax.errorbar(
+                [r.demos * dodge for r in lines],  # type: ignore[operator]
+                [s.mean for s in stats],
+                yerr=[s.std for s in stats],
+                color=colours[approach],
+                marker=MARKERS[i % len(MARKERS)],
+                capsize=4,
+                label=label,
+            )
+        if counts:
+            ax.set_xscale("log")
+            ax.set_xticks(counts, [str(c) for c in counts])
+            ax.minorticks_off()
+        ax.set_ylim(-3, 103)
+        ax.set_xlabel("demonstrations")
+        ax.set_ylabel("eval tasks solved (%)")
+        ax.set_title(env)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="best")
+    return fig
+
+
+def success_vs_time(rows: Sequence[Row], timeout: float) -> Figure:
+    envs = list(dict.fromkeys(r.env for r in rows))
+    colours = _colours(rows)
+    fig, axes = _panels(len(envs), "Success vs planning time (mean ± std over seeds)")
+    for ax, env in zip(axes, envs, strict=True):
+        mine = [r for r in rows if r.env == env]
+        shown = []
+        for approach in dict.fromkeys(r.approach for r in mine):
+            lines = [r for r in mine if r.approach == approach]
+            shown.append(max(lines, key=lambda r: -1 if r.demos is None else r.demos))
+        fastest = min((t for r in shown for s in r.seeds for t in s.solved_seconds), default=1e-2)
+        grid = np.geomspace(max(min(fastest, timeout) * 0.8, 1e-4), timeout, 300)
+        for row in shown:
+            per_seed = np.array(
+                [[100.0 * s.fraction_solved_within(t) for t in grid] for s in row.seeds]
+            )
+            mean, std = per_seed.mean(axis=0), per_seed.std(axis=0)
+            label = row.label + ("" if row.demos is None else f" ({row.demos} demos)")
+            colour = colours[row.approach]
+            ax.step(grid, mean, where="post", color=colour, label=label)
+            ax.fill_between(grid, mean - std, mean + std, step="post", color=colour, alpha=0.12)
+        ax.set_xscale("log")
+        ax.set_xlim(grid[0], timeout)
+        ax.set_ylim(-3, 103)
+        ax.set_xlabel("planning time t (s)")
+        ax.set_ylabel("eval tasks solved within t (%)")
+        ax.set_title(env)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="best")
+    return fig
+
+
+def save_figure(fig: Figure, stem: Path) -> list[Path]:
+    """``stem``.png and ``stem``.svg, each written atomically."""
+    written = []
+    for fmt in FORMATS:
+        path = stem.with_suffix(f".{fmt}")
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format=fmt, dpi=150)
+        written.append(path)
+    return written

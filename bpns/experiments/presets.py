@@ -1,0 +1,104 @@
+"""What a sweep covers, as frozen dataclasses; named presets; command-line overrides.
+
+A sweep's settings decide its results. How it runs (workers, backend) does not, so it
+is not part of :class:`SweepConfig`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+from bpns.experiments.approach_info import approach_names
+
+
+class SweepConfigError(ValueError):
+    """A sweep whose settings make no sense (empty, negative, repeated)."""
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """Environments x demo counts x seeds x approaches, evaluated on ``eval_tasks`` tasks.
+
+    A seed picks the train tasks (hence the demonstrations and the skills' network
+    initialisation) and the eval tasks and the planner's sampling.
+    """
+
+    name: str
+    envs: tuple[str, ...]
+    demo_counts: tuple[int, ...]
+    seeds: tuple[int, ...]
+    approaches: tuple[str, ...]
+    eval_tasks: int
+    timeout: float  # seconds of planning per eval task
+
+    def __post_init__(self) -> None:
+        for field in ("envs", "demo_counts", "seeds", "approaches"):
+            values = getattr(self, field)
+            if not values:
+                raise SweepConfigError(f"{field} must not be empty")
+            if len(set(values)) != len(values):
+                raise SweepConfigError(f"{field} has repeated values: {list(values)}")
+        if min(self.demo_counts) < 1:
+            raise SweepConfigError(f"demo counts must be >= 1, got {list(self.demo_counts)}")
+        if min(self.seeds) < 0:
+            raise SweepConfigError(f"seeds must be >= 0, got {list(self.seeds)}")
+        if self.eval_tasks < 1:
+            raise SweepConfigError(f"eval_tasks must be >= 1, got {self.eval_tasks}")
+        if not (self.timeout > 0 and math.isfinite(self.timeout)):
+            raise SweepConfigError(f"timeout must be a number of seconds > 0, got {self.timeout}")
+
+    @property
+    def max_demos(self) -> int:
+        return max(self.demo_counts)
+
+    def with_overrides(self, **overrides: object) -> SweepConfig:
+        """A copy with the fields given (not None) replaced; tuples sorted where order is
+        meaningless so that the same sweep always has the same cells."""
+        fields = {k: v for k, v in overrides.items() if v is not None}
+        for key in ("demo_counts", "seeds"):
+            if key in fields:
+                fields[key] = tuple(sorted(fields[key]))  # type: ignore[arg-type]
+        for key in ("envs", "approaches"):
+            if key in fields:
+                fields[key] = tuple(fields[key])  # type: ignore[arg-type]
+        return dataclasses.replace(self, **fields)  # type: ignore[arg-type]
+
+    def to_json(self) -> dict[str, object]:
+        return dataclasses.asdict(self)
+
+
+PAPER = SweepConfig(
+    name="paper",
+    envs=("cover", "stick_button", "coffee"),
+    demo_counts=(50, 100, 250, 500, 1000),
+    seeds=tuple(range(10)),
+    approaches=approach_names(),
+    eval_tasks=50,
+    timeout=300.0,
+)
+
+# Fits 2 cores in a few hours per environment.
+SMALL = SweepConfig(
+    name="small",
+    envs=("cover", "stick_button", "coffee"),
+    demo_counts=(100, 250, 1000),
+    seeds=(0, 1, 2),
+    approaches=approach_names(),
+    eval_tasks=50,
+    timeout=60.0,
+)
+
+# For tests and a first try: a minute on one core.
+SMOKE = SweepConfig(
+    name="smoke",
+    envs=("cover",),
+    demo_counts=(4, 8),
+    seeds=(0, 1),
+    approaches=("bpns", "oracle"),
+    eval_tasks=2,
+    timeout=10.0,
+)
+
+PRESETS: dict[str, SweepConfig] = {p.name: p for p in (PAPER, SMALL, SMOKE)}

@@ -1,0 +1,89 @@
+"""Turn a sweep's stored eval cells into its outputs: results.md (the command, the
+table and the figures), results.json (the aggregated rows) and the figures."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from bpns.atomic import atomic_path
+from bpns.experiments.aggregate import Row, aggregate, markdown_table
+from bpns.experiments.cells import EVAL, Cell
+from bpns.experiments.plots import save_figure, success_vs_demos, success_vs_time
+from bpns.experiments.presets import SweepConfig
+from bpns.experiments.store import CellStore
+
+FIG_DEMOS = "success_vs_demos"
+FIG_TIME = "success_vs_time"
+
+
+def stored_eval_records(cells: Sequence[Cell], store: CellStore) -> list[dict[str, Any]]:
+    return [r for c in cells if c.kind == EVAL and (r := store.load(c)) is not None]
+
+
+def write_report(
+    out: Path, cells: Sequence[Cell], store: CellStore, config: SweepConfig, command: str
+) -> tuple[list[Row], list[Path]]:
+    """Aggregate the stored eval cells of ``cells``; returns the rows and files written
+    (no figures when no eval cell has finished)."""
+    records = stored_eval_records(cells, store)
+    rows = aggregate(records)
+    missing = sum(c.kind == EVAL for c in cells) - len(records)
+    table = markdown_table(rows)
+    written: list[Path] = []
+    if rows:
+        written += save_figure(success_vs_demos(rows), out / FIG_DEMOS)
+        written += save_figure(success_vs_time(rows, config.timeout), out / FIG_TIME)
+    from bpns.experiments.presets import PRESETS
+
+    preset = PRESETS.get(config.name)
+    overridden = "" if preset == config else " with overrides"
+    text = [
+        f"# Experiment: preset `{config.name}`{overridden}",
+        "",
+        f"Produced by `{command}`.",
+        "",
+        f"{len(config.seeds)} seeds ({', '.join(map(str, config.seeds))}); each seed has its own "
+        f"demonstrations, skills and {config.eval_tasks} eval tasks; planning timeout "
+        f"{config.timeout:g} s per task. Values are mean ± std over seeds (population std); "
+        "times are over solved tasks, nodes created over all tasks; learning time is the "
+        "learning pipeline alone.",
+        "",
+    ]
+    last_run = _last_run(out / "sweep.json")
+    if last_run:
+        text += [last_run, ""]
+    if missing:
+        text += [f"**{missing} eval cells are not finished; their rows are incomplete.**", ""]
+    text += [table]
+    if rows:
+        text += [
+            "",
+            f"![success vs demonstrations]({FIG_DEMOS}.png)",
+            "",
+            f"![success vs planning time]({FIG_TIME}.png)",
+            "",
+        ]
+    md = out / "results.md"
+    with atomic_path(md) as tmp:
+        tmp.write_text("\n".join(text))
+    js = out / "results.json"
+    with atomic_path(js) as tmp:
+        payload = {"config": config.to_json(), "command": command, "missing_cells": missing}
+        payload["rows"] = [r.to_json() for r in rows]
+        tmp.write_text(json.dumps(payload, indent=1) + "\n")
+    return rows, [md, js, *written]
+
+
+def _last_run(sweep_file: Path) -> str | None:
+    """One line on the last run in this directory (from its ``sweep.json``), if any."""
+    try:
+        data = json.loads(sweep_file.read_text())
+        return (
+            f"Last run: {data['computed']} of {data['cells']} cells computed "
+            f"({data['reused']} reused) in {data['seconds']:.0f} s."
+        )
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
