@@ -128,7 +128,7 @@ def grasp_action(
         funnel.band,
         funnel.deadzone,
     )
-    return open_first(state, robot, action)
+    return action if near else open_first(state, robot, action)
 
 
 def release_action(
