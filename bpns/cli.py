@@ -11,7 +11,7 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from bpns import commands, commands_learning
+from bpns import check_env_cli, commands, commands_learning
 from bpns.cli_common import UserError
 
 # name -> (help, configure the argument parser, run)
@@ -50,6 +50,11 @@ COMMANDS: dict[str, tuple[str, Callable, Callable]] = {
         "the whole pipeline: demos -> learn -> eval -> table -> video",
         commands_learning.run_args,
         commands_learning.cmd_run,
+    ),
+    "check-env": (
+        "check an environment's contract, one line per violation",
+        check_env_cli.configure,
+        check_env_cli.run,
     ),
 }
 

@@ -3,36 +3,22 @@ and replay stored demonstrations to check that they reproduce exactly."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
 from bpns.abstraction import abstract
+from bpns.demo_attempts import attempt_demonstration
 from bpns.environment import Environment
-from bpns.structs import Demonstration, State, Task
+from bpns.structs import Demonstration, Task
 
 
 def run_demonstrator(env: Environment, task: Task, seed: int | list[int]) -> Demonstration | None:
-    """Roll the env's demonstrator out from ``task.init``; None if the goal was not reached."""
-    policy: Callable[[State], np.ndarray] = env.demonstrator(task, np.random.default_rng(seed))
-    states, actions = [task.init], []
-    state = task.init
-    try:
-        for _ in range(task.horizon):
-            if task.goal_holds(abstract(state, env.goal_predicates)):
-                break
-            action = env.check_action(policy(state))
-            state = env.simulate(state, action)
-            states.append(state)
-            actions.append(action)
-    except Exception:  # a failed demonstration is reported, not fatal  # noqa: BLE001
-        return None
-    if not task.goal_holds(abstract(state, env.goal_predicates)):
-        return None
-    act = np.asarray(actions, dtype=np.float64).reshape(len(actions), len(env.action_low))
-    return Demonstration(task=task, states=tuple(states), actions=act)
+    """Roll the env's demonstrator out from ``task.init``; None if the goal was not reached
+    (:func:`bpns.demo_attempts.attempt_demonstration` says why)."""
+    return attempt_demonstration(env, task, seed).demo
 
 
 @dataclass(frozen=True)

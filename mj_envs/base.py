@@ -118,7 +118,7 @@ class MujocoEnv(abc.ABC):
         them to show its state sets them here, from ``world.data``, for every frame.
         """
 
-    max_objects_samples: int = 16  # layouts per stream the default max_objects looks at
+    max_objects_samples: int = 8  # layouts per stream the default max_objects looks at
 
     @property
     def max_objects(self) -> dict[str, int]:
