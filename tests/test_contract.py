@@ -237,9 +237,23 @@ def test_cover_keeps_the_whole_contract():
     assert check_environment(CoverEnv(), n_tasks=2, n_demos=1, rollout_steps=4) == []
 
 
-def test_check_env_cli_exit_codes(capsys):
+def test_check_env_cli_exit_codes(capsys, monkeypatch):
     assert main(["check-env", "no_such_env"]) == 2
     assert "unknown environment 'no_such_env'" in capsys.readouterr().err
+    assert main(["check-env", "cover", "--tasks", "1", "--demos", "1", "--no-gym"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out == ["note: gym: skipped (disabled)", "cover: keeps the contract (10 checks passed)"]
+
+    from bpns import check_env_cli
+    from bpns.contract import ContractReport, Violation
+
+    broken = ContractReport([Violation("simulate", "a NaN action was accepted")], [], ["simulate"])
+    monkeypatch.setattr(check_env_cli, "run_checks", lambda env, config: broken)
+    assert main(["check-env", "cover"]) == 1
+    assert capsys.readouterr().out.splitlines() == [
+        "violation: simulate: a NaN action was accepted",
+        "cover: 1 violation in 1 checks",
+    ]
 
 
 def test_layout_type_is_public():  # TaskLayout stays importable for task authors
