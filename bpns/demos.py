@@ -4,36 +4,22 @@ and replay stored demonstrations to check that they reproduce exactly."""
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
 from bpns.abstraction import abstract
+from bpns.demo_attempts import DemoAttempt, attempt_demonstration
 from bpns.environment import Environment
 from bpns.pools import bounded_map, capped_workers, make_pool
-from bpns.structs import Demonstration, State, Task
+from bpns.structs import Demonstration, Task
 
 
 def run_demonstrator(env: Environment, task: Task, seed: int | list[int]) -> Demonstration | None:
-    """Roll the env's demonstrator out from ``task.init``; None if the goal was not reached."""
-    policy: Callable[[State], np.ndarray] = env.demonstrator(task, np.random.default_rng(seed))
-    states, actions = [task.init], []
-    state = task.init
-    try:
-        for _ in range(task.horizon):
-            if task.goal_holds(abstract(state, env.goal_predicates)):
-                break
-            action = env.check_action(policy(state))
-            state = env.simulate(state, action)
-            states.append(state)
-            actions.append(action)
-    except Exception:  # a failed demonstration is reported, not fatal  # noqa: BLE001
-        return None
-    if not task.goal_holds(abstract(state, env.goal_predicates)):
-        return None
-    act = np.asarray(actions, dtype=np.float64).reshape(len(actions), len(env.action_low))
-    return Demonstration(task=task, states=tuple(states), actions=act)
+    """Roll the env's demonstrator out from ``task.init``; None if the goal was not reached
+    (:func:`bpns.demo_attempts.attempt_demonstration` says why)."""
+    return attempt_demonstration(env, task, seed).demo
 
 
 @dataclass(frozen=True)
@@ -44,23 +30,24 @@ class DemoJob:
     train: bool = True
 
 
-def _collect_one(job: DemoJob) -> tuple[int, Demonstration | None]:
+def _attempt_one(job: DemoJob) -> tuple[int, DemoAttempt]:
     from bpns.registry import make_environment
 
     env = _ENV_CACHE.get(job.env_name) or _ENV_CACHE.setdefault(
         job.env_name, make_environment(job.env_name)
     )
     task = env.task(job.index, job.seed, job.train)
-    return job.index, run_demonstrator(env, task, seed=[job.seed, job.index])
+    return job.index, attempt_demonstration(env, task, [job.seed, job.index])
 
 
 _ENV_CACHE: dict[str, Environment] = {}
 
 
-def collect_demonstrations(
+def collect_attempts(
     env_name: str, n: int, seed: int, workers: int = 1, train: bool = True
-) -> Iterator[tuple[int, Demonstration | None]]:
-    """Yield (task index, demo or None) for tasks 0..n-1 of the seeded stream, in order.
+) -> Iterator[tuple[int, DemoAttempt]]:
+    """Yield (task index, attempt) for tasks 0..n-1 of the seeded stream, in order; a
+    failed attempt says why (exception, or the goal atoms missing at the horizon).
 
     Jobs are made lazily and at most a few per worker are in flight, so memory does not
     grow with ``n``; ``workers`` is capped at the CPU count (:mod:`bpns.pools`)."""
@@ -69,10 +56,18 @@ def collect_demonstrations(
     jobs = (DemoJob(env_name, seed, i, train) for i in range(n))
     workers = capped_workers(workers)
     if workers <= 1:
-        yield from map(_collect_one, jobs)
+        yield from map(_attempt_one, jobs)
         return
     with make_pool(workers) as pool:
-        yield from bounded_map(pool, _collect_one, jobs, in_flight=4 * workers)
+        yield from bounded_map(pool, _attempt_one, jobs, in_flight=4 * workers)
+
+
+def collect_demonstrations(
+    env_name: str, n: int, seed: int, workers: int = 1, train: bool = True
+) -> Iterator[tuple[int, Demonstration | None]]:
+    """Yield (task index, demo or None) for tasks 0..n-1 of the seeded stream, in order."""
+    for index, attempt in collect_attempts(env_name, n, seed, workers, train):
+        yield index, attempt.demo
 
 
 @dataclass(frozen=True)

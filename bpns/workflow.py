@@ -42,13 +42,17 @@ class DemosWritten:
     num_written: int
     failed: tuple[int, ...]  # task indices the demonstrator failed on
     seconds: float
+    why: tuple[str, ...] = ()  # for each failed task: why (DemoAttempt.explain)
 
     def lines(self) -> list[str]:
-        return [
+        out = [
             f"wrote {self.num_written} demonstrations of {self.env_name} to {self.path} in "
             f"{self.seconds:.1f} s"
             + (f"; the demonstrator failed on tasks {list(self.failed)}" if self.failed else "")
         ]
+        for index, why in zip(self.failed, self.why, strict=False):
+            out.append(f"  task {index}: {why}")
+        return out
 
 
 def collect_demos(
@@ -58,25 +62,29 @@ def collect_demos(
     out: Path,
     workers: int = 1,
     progress: Progress = _no_progress,
+    debug: bool = False,
 ) -> DemosWritten:
-    """Run the scripted demonstrator on train tasks 0..num-1 and save the successes."""
+    """Run the scripted demonstrator on train tasks 0..num-1 and save the successes; say
+    why each failure failed (with ``debug``: its traceback and last abstract states)."""
     from bpns.datasets import save_demonstrations
-    from bpns.demos import collect_demonstrations
+    from bpns.demos import collect_attempts
 
     failed: list[int] = []
+    why: list[str] = []
     t0 = time.perf_counter()
 
     def successful():
-        for index, demo in progress(
-            collect_demonstrations(env.name, num, seed, workers), num, f"demos {env.name}", "task"
+        for index, attempt in progress(
+            collect_attempts(env.name, num, seed, workers), num, f"demos {env.name}", "task"
         ):
-            if demo is None:
+            if attempt.demo is None:
                 failed.append(index)
+                why.append(attempt.explain(debug))
             else:
-                yield demo
+                yield attempt.demo
 
     n = save_demonstrations(out, env, successful())
-    return DemosWritten(out, env.name, n, tuple(failed), time.perf_counter() - t0)
+    return DemosWritten(out, env.name, n, tuple(failed), time.perf_counter() - t0, tuple(why))
 
 
 # -- replay -------------------------------------------------------------------------------

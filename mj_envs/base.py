@@ -10,6 +10,7 @@ It implements :class:`bpns.environment.Environment`.
 from __future__ import annotations
 
 import abc
+from collections import Counter
 from collections.abc import Hashable, Sequence
 from dataclasses import dataclass
 
@@ -117,10 +118,27 @@ class MujocoEnv(abc.ABC):
         them to show its state sets them here, from ``world.data``, for every frame.
         """
 
+    max_objects_samples: int = 8  # layouts per stream the default max_objects looks at
+
     @property
     def max_objects(self) -> dict[str, int]:
-        """Upper bound on objects per type name over train and eval tasks (Gym obs size)."""
-        raise NotImplementedError
+        """Upper bound on objects per type name over train and eval tasks (Gym obs size).
+
+        Default: the most objects of each type in the first ``max_objects_samples``
+        layouts of both streams (seed 0), sampled once per instance. Override it when a
+        rare task may hold more objects than such a sample shows.
+        """
+        cached = self.__dict__.get("_max_objects")
+        if cached is None:
+            cached = {t.name: 0 for t in self.types}
+            for train in (True, False):
+                for i in range(self.max_objects_samples):
+                    rng = np.random.default_rng([0, 0 if train else 1, i])
+                    counts = Counter(o.type.name for o in self.sample_layout(rng, train).objects)
+                    for name, k in counts.items():
+                        cached[name] = max(cached.get(name, 0), k)
+            self.__dict__["_max_objects"] = cached
+        return dict(cached)
 
     # -- tasks ----------------------------------------------------------------------
     def train_tasks(self, n: int, seed: int) -> list[Task]:

@@ -1,4 +1,4 @@
-"""The ``bpns`` command line: demos, replay, render, learn, skills, eval, run, experiment.
+"""The ``bpns`` command line: one sub-command per module (demos ... experiment, check-env).
 
 One module per command, each with ``HELP``, ``configure(parser)`` and ``run(args)``;
 none imports another (shared helpers live in :mod:`bpns.cli.common`, the work itself in
@@ -14,7 +14,7 @@ import sys
 from collections.abc import Sequence
 from types import ModuleType
 
-from bpns.cli import demos, experiment, learn, render, replay, run, skills
+from bpns.cli import check_env, demos, experiment, learn, render, replay, run, skills
 from bpns.cli import eval as eval_
 from bpns.cli.common import UserError
 
@@ -27,6 +27,7 @@ COMMANDS: dict[str, ModuleType] = {
     "eval": eval_,
     "run": run,
     "experiment": experiment,
+    "check-env": check_env,
 }
 
 

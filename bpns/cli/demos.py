@@ -25,6 +25,11 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, type=Path, help="output .h5 file")
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     p.add_argument("--workers", type=positive, default=default_workers())
+    p.add_argument(
+        "--debug",
+        action="store_true",
+        help="for each failed demonstration also print its traceback and last abstract states",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -33,6 +38,8 @@ def run(args: argparse.Namespace) -> int:
     env = env_by_name(args.env)
     check_output_file(args.out, "--out", args.overwrite)
     workers = capped_to_cores(args.workers, "--workers")
-    written = collect_demos(env, args.num, args.seed, args.out, workers, progress)
+    written = collect_demos(
+        env, args.num, args.seed, args.out, workers, progress, debug=args.debug
+    )
     print_lines(written)
     return 0 if written.num_written else 1

@@ -8,6 +8,8 @@ their goal.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from bpns.structs import Object, State
@@ -71,4 +73,78 @@ def funnel_action(
             GAIN * (z_req - pos[2]),
             grip,
         ]
+    )
+
+
+# -- pick and place -------------------------------------------------------------------
+# Built on the funnel, so each is one continuous law of the state (saturated gripper), the
+# form a small MLP imitates. A skill ends the instant its atoms flip: a pick when both
+# pads touch (Holding), a place when the pads let go. So a pick first finishes opening
+# where it stands (``open_first``) instead of dragging the object just released.
+
+OPEN_FINGERS = 0.035  # finger opening (m) from which the hand may move: clear of a 4.5 cm object
+
+
+@dataclass(frozen=True)
+class Funnel:
+    """A funnel's shape (see :func:`funnel_action`): travel height, slope and fade band."""
+
+    safe_z: float = 0.12
+    slope: float = 4.0
+    band: float = 0.02
+    deadzone: float = 0.005
+
+
+def fingers(state: State, robot: Object) -> float:
+    """The finger opening: the fourth robot feature by convention."""
+    return float(state.data[robot][3])
+
+
+def open_first(state: State, robot: Object, action: np.ndarray) -> np.ndarray:
+    """Hold the hand still and open while the fingers are narrower than OPEN_FINGERS.
+
+    Used at the start of any skill that may begin with an object between the fingers.
+    Edits ``action`` in place and returns it.
+    """
+    if fingers(state, robot) < OPEN_FINGERS:
+        action[:3] = 0.0
+        action[3] = 1.0
+    return action
+
+
+def grasp_action(
+    state: State, robot: Object, grasp_xyz: np.ndarray, funnel: Funnel, close_tol: float = 0.006
+) -> np.ndarray:
+    """Go above, descend (funnel) with the fingers open and close once within
+    ``close_tol`` of ``grasp_xyz``. The pick is over when both pads touch."""
+    near = np.linalg.norm(hand(state, robot) - grasp_xyz) <= close_tol
+    action = funnel_action(
+        state,
+        robot,
+        grasp_xyz,
+        -1.0 if near else 1.0,
+        funnel.safe_z,
+        funnel.slope,
+        funnel.band,
+        funnel.deadzone,
+    )
+    return action if near else open_first(state, robot, action)
+
+
+def release_action(
+    state: State,
+    robot: Object,
+    release_xyz: np.ndarray,
+    landed: bool,
+    funnel: Funnel,
+    release_tol: float = 0.006,
+) -> np.ndarray:
+    """Carry (closed) along the funnel to ``release_xyz``, the hand position that sets the
+    object down; once it has ``landed`` with the hand within ``release_tol`` horizontally,
+    hold still and open (pushing on would slide the object up the pads)."""
+    pos = hand(state, robot)
+    if landed and np.hypot(*(release_xyz[:2] - pos[:2])) <= release_tol:
+        return move_action(state, robot, np.array([release_xyz[0], release_xyz[1], pos[2]]), 1.0)
+    return funnel_action(
+        state, robot, release_xyz, -1.0, funnel.safe_z, funnel.slope, funnel.band
     )

@@ -62,3 +62,27 @@ def sample_disjoint_intervals(
         ):
             return centres
     raise RuntimeError("could not place the objects without overlap; widen the span")
+
+
+def sample_separated_points(
+    rng: np.random.Generator,
+    n: int,
+    x_range: tuple[float, float],
+    y_range: tuple[float, float],
+    min_distance: float,
+    tries: int = 10_000,
+) -> np.ndarray:
+    """``n`` (x, y) points in the rectangle, pairwise at least ``min_distance`` apart.
+
+    Choose ``min_distance`` from the largest footprint plus the hand's clearance: the
+    Panda's hand box reaches 10 cm either way along the finger axis, so objects a grasp
+    must not disturb belong further apart than that (rejection sampling; raises if the
+    rectangle is too small).
+    """
+    for _ in range(tries):
+        pts = np.column_stack([rng.uniform(*x_range, size=n), rng.uniform(*y_range, size=n)])
+        diff = pts[:, None, :] - pts[None, :, :]
+        dist = np.hypot(diff[..., 0], diff[..., 1]) + np.eye(n) * 1e9
+        if n < 2 or dist.min() >= min_distance:
+            return pts
+    raise RuntimeError(f"could not place {n} objects {min_distance} m apart; widen the ranges")

@@ -1,0 +1,107 @@
+"""One run of a scripted demonstrator, with the reason when it fails.
+
+``bpns.demos.run_demonstrator`` keeps its contract (a Demonstration or None) by
+delegating here; callers that must say *why* a task was not demonstrated (``bpns demos``,
+``bpns check-env``) use :func:`attempt_demonstration`, whose :class:`DemoAttempt` carries
+the exception (type, message, traceback) and the last abstract states the run went
+through: enough to tell a demonstrator bug from a physics failure without a debugger.
+"""
+
+from __future__ import annotations
+
+import traceback as tb
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from bpns.abstraction import abstract
+from bpns.environment import Environment
+from bpns.structs import Demonstration, State, Task
+
+TRACE_LENGTH = 5  # abstract states kept for a failure's atom trace
+
+
+@dataclass(frozen=True)
+class AtomChange:
+    """The abstract state from ``step`` on (until the next change)."""
+
+    step: int
+    atoms: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class DemoAttempt:
+    """A demonstrator's run on one task: the demo, or why there is none."""
+
+    demo: Demonstration | None
+    steps: int  # actions taken
+    error: str | None = None  # "ExceptionType: message" or "goal not reached ..."
+    traceback: str | None = None  # the formatted traceback when the demonstrator raised
+    trace: tuple[AtomChange, ...] = ()  # the last abstract states before the failure
+
+    @property
+    def solved(self) -> bool:
+        return self.demo is not None
+
+    def explain(self, debug: bool = False) -> str:
+        """One line (the error); with ``debug`` also the traceback and the atom trace."""
+        if self.solved:
+            return f"solved in {self.steps} steps"
+        lines = [f"{self.error} (after {self.steps} steps)"]
+        if debug:
+            if self.traceback:
+                lines.append(self.traceback.rstrip())
+            for change in self.trace:
+                lines.append(f"  from step {change.step}: {', '.join(change.atoms) or '(none)'}")
+        return "\n".join(lines)
+
+
+def attempt_demonstration(
+    env: Environment, task: Task, seed: int | list[int], trace_length: int = TRACE_LENGTH
+) -> DemoAttempt:
+    """Roll the env's demonstrator out from ``task.init`` and report the outcome."""
+    states: list[State] = [task.init]
+    actions: list[np.ndarray] = []
+    error = trace_text = None
+    try:
+        policy: Callable[[State], np.ndarray] = env.demonstrator(task, np.random.default_rng(seed))
+        state = task.init
+        for _ in range(task.horizon):
+            if task.goal_holds(abstract(state, env.goal_predicates)):
+                break
+            action = env.check_action(policy(state))
+            state = env.simulate(state, action)
+            states.append(state)
+            actions.append(action)
+    except Exception as err:  # a failed demonstration is reported, not fatal  # noqa: BLE001
+        error = f"{type(err).__name__}: {err}"
+        trace_text = tb.format_exc()
+    if error is None and task.goal_holds(abstract(states[-1], env.goal_predicates)):
+        act = np.asarray(actions, dtype=np.float64).reshape(len(actions), len(env.action_low))
+        demo = Demonstration(task=task, states=tuple(states), actions=act)
+        return DemoAttempt(demo, len(actions))
+    if error is None:
+        missing = task.goal - frozenset(abstract(states[-1], env.goal_predicates))
+        error = f"goal not reached within the horizon ({task.horizon}); missing {_names(missing)}"
+    trace = _atom_trace(env, states, trace_length)
+    return DemoAttempt(None, len(actions), error, trace_text, trace)
+
+
+def _names(atoms) -> str:
+    return ", ".join(sorted(map(str, atoms)))
+
+
+def _atom_trace(env: Environment, states: list[State], keep: int) -> tuple[AtomChange, ...]:
+    """The last ``keep`` distinct abstract states of the run, oldest first."""
+    changes: list[AtomChange] = []
+    previous: tuple[str, ...] | None = None
+    for step, state in enumerate(states):
+        try:
+            atoms = tuple(sorted(map(str, abstract(state, env.predicates))))
+        except Exception as err:  # noqa: BLE001  (a broken predicate must not hide the failure)
+            atoms = (f"<predicates raised {type(err).__name__}: {err}>",)
+        if atoms != previous:
+            changes.append(AtomChange(step, atoms))
+            previous = atoms
+    return tuple(changes[-keep:])

@@ -1,0 +1,1 @@
+"""Stack: a worked example of a bpns task package (see docs/NEW_TASK.md)."""
