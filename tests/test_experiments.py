@@ -136,7 +136,8 @@ def test_rerun_with_other_settings_is_refused(resumed_sweep, cover_env):
 
 def test_cli_refuses_a_sweep_directory_made_with_other_settings(resumed_sweep, capsys):
     store = resumed_sweep[0]
-    argv = ["experiment", "--preset", "smoke", "--out", str(store.root), "--demos", "3"]
+    argv = ["experiment", "--preset", "smoke", "--env", "cover", "--out", str(store.root)]
+    argv += ["--demos", "3"]
     code = cli_main([*argv, "--seeds", "0", "--tasks", "1", "--timeout", "60", "--report-only"])
     assert code == 2
     err = capsys.readouterr().err

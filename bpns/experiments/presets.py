@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass
 
 from bpns.experiments.approach_info import approach_names
+from bpns.registry import environment_names
 
 
 class SweepConfigError(ValueError):
@@ -69,9 +70,11 @@ class SweepConfig:
         return dataclasses.asdict(self)
 
 
+# Presets sweep every registered environment (the four domains, and any plugin you
+# installed); `--env` picks some. bpns names no environment itself.
 PAPER = SweepConfig(
     name="paper",
-    envs=("cover", "stick_button", "coffee"),
+    envs=tuple(environment_names()),
     demo_counts=(50, 100, 250, 500, 1000),
     seeds=tuple(range(10)),
     approaches=approach_names(),
@@ -82,7 +85,7 @@ PAPER = SweepConfig(
 # Fits 2 cores in a few hours per environment.
 SMALL = SweepConfig(
     name="small",
-    envs=("cover", "stick_button", "coffee"),
+    envs=tuple(environment_names()),
     demo_counts=(100, 250, 1000),
     seeds=(0, 1, 2),
     approaches=approach_names(),
@@ -90,10 +93,10 @@ SMALL = SweepConfig(
     timeout=60.0,
 )
 
-# For tests and a first try: a minute on one core.
+# For tests and a first try: about a minute per environment on one core.
 SMOKE = SweepConfig(
     name="smoke",
-    envs=("cover",),
+    envs=tuple(environment_names()),
     demo_counts=(4, 8),
     seeds=(0, 1),
     approaches=("bpns", "oracle"),
