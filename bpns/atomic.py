@@ -102,7 +102,12 @@ def recover_directory(target: str | os.PathLike) -> bool:
     recovered = False
     if olds and not os.path.lexists(target):
         newest = max(olds, key=lambda p: _stamp(p.name))
-        os.rename(newest, target)
+        inner = newest / target.name
+        if [p.name for p in newest.iterdir()] == [target.name] and inner.is_dir():
+            os.rename(inner, target)  # left by the earlier scheme: .NAME.old-XXXX/NAME
+            os.rmdir(newest)
+        else:
+            os.rename(newest, target)
         olds.remove(newest)
         recovered = True
     if os.path.lexists(target):

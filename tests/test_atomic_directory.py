@@ -107,6 +107,14 @@ def test_recovery_restores_the_old_directory_hidden_by_an_interrupted_swap(tmp_p
     assert not atomic.recover_directory(target)
 
 
+def test_recovery_understands_the_leftover_of_the_earlier_two_rename_scheme(tmp_path):
+    target = tmp_path / "skills"
+    _write_tree(tmp_path / ".skills.old-k3j_x" / "skills", OLD)
+    assert atomic.recover_directory(target)
+    assert _tree(target) == OLD
+    assert [p.name for p in tmp_path.iterdir()] == ["skills"]
+
+
 _CHILD = textwrap.dedent(
     """
     import os, shutil, sys

@@ -27,7 +27,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -208,7 +208,9 @@ def test_fuzzed_demo_files_load_finite_or_raise_dataset_error(
             try:
                 demos = load_demonstrations(path, cover_env)
             except DatasetError:
+                event("refused with DatasetError")
                 return
+        event("loaded")
         _check_demos_finite(demos)
 
 
@@ -335,5 +337,7 @@ def test_fuzzed_skills_directories_load_finite_or_raise_artifact_error(
             try:
                 skills = load_skills(directory, toy.PREDICATES, toy.TYPES)
             except ArtifactError:
+                event("refused with ArtifactError")
                 return
+        event("loaded")
         _check_skills_finite(skills)
