@@ -27,7 +27,7 @@ def write_results(out: Path, reports: Sequence[EvalReport], table: str) -> None:
 
     out.mkdir(parents=True, exist_ok=True)
     with atomic_path(out / "results.json") as tmp:
-        tmp.write_text(json.dumps([r.to_json() for r in reports], indent=2) + "\n")
+        tmp.write_text(json.dumps([r.to_json() for r in reports], indent=2, allow_nan=False) + "\n")
     with atomic_path(out / "results.md") as tmp:
         tmp.write_text(table)
     for r in reports:

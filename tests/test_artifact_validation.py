@@ -33,14 +33,14 @@ def _edit_index(path, edit):
     (path / "skills.json").write_text(json.dumps(index))
 
 
-def _edit_npz(path, edit, name="Op0.policy.npz"):
+def _edit_npz(path, edit, name="Holding.policy.npz"):
     with np.load(path / name) as data:
         arrays = {k: data[k] for k in data.files}
     edit(arrays)
     np.savez(path / name, **arrays)
 
 
-def _set(key, value, name="Op0.policy.npz"):
+def _set(key, value, name="Holding.policy.npz"):
     def mutate(path):
         _edit_npz(path, lambda a: a.__setitem__(key, value(a[key])), name)
 
@@ -56,28 +56,28 @@ def _deep_nesting(path):
 
 
 def _fifo_weights(path):
-    os.unlink(path / "Op0.policy.npz")
-    os.mkfifo(path / "Op0.policy.npz")
+    os.unlink(path / "Holding.policy.npz")
+    os.mkfifo(path / "Holding.policy.npz")
 
 
 def _empty_weights(path):
-    (path / "Op0.policy.npz").write_bytes(b"")
+    (path / "Holding.policy.npz").write_bytes(b"")
 
 
 def _symlink_escape(path):
     outside = path.parent / "outside.npz"
-    shutil.copy(path / "Op0.policy.npz", outside)
-    os.unlink(path / "Op0.policy.npz")
-    os.symlink(outside, path / "Op0.policy.npz")
+    shutil.copy(path / "Holding.policy.npz", outside)
+    os.unlink(path / "Holding.policy.npz")
+    os.symlink(outside, path / "Holding.policy.npz")
 
 
 def _dotdot_path(path):
-    shutil.copy(path / "Op0.policy.npz", path.parent / "elsewhere.npz")
+    shutil.copy(path / "Holding.policy.npz", path.parent / "elsewhere.npz")
     _edit_index(path, lambda i: i["skills"][0].__setitem__("policy", "../elsewhere.npz"))
 
 
 def _absolute_path(path):
-    absolute = str((path / "Op0.policy.npz").resolve())
+    absolute = str((path / "Holding.policy.npz").resolve())
     _edit_index(path, lambda i: i["skills"][0].__setitem__("policy", absolute))
 
 
@@ -87,12 +87,12 @@ def _huge_declared_member(path):
     np.lib.format.write_array_header_1_0(
         header, {"descr": "<f8", "fortran_order": False, "shape": (2**29,)}
     )
-    with zipfile.ZipFile(path / "Op0.policy.npz", "a") as z:
+    with zipfile.ZipFile(path / "Holding.policy.npz", "a") as z:
         z.writestr("net/w9.npy", header.getvalue() + b"\0" * 64)
 
 
 def _extra_member(path):
-    with zipfile.ZipFile(path / "Op0.policy.npz", "a") as z:
+    with zipfile.ZipFile(path / "Holding.policy.npz", "a") as z:
         z.writestr("payload.npy", b"\x93NUMPY")
 
 
@@ -109,7 +109,7 @@ CASES = [
     (_absolute_path, r"leaves the skills directory"),
     (_huge_declared_member, r"declared shape \(536870912,\) is beyond the limits"),
     (_extra_member, r"unexpected member 'payload.npy'"),
-    (_duplicate_operator, r"two skills share the operator name \['Op0'\]"),
+    (_duplicate_operator, r"two skills share the operator name \['Holding'\]"),
     (_index(lambda i: i["skills"][0].__setitem__("horizon", 0)), r"horizon must be"),
     (_index(lambda i: i["skills"][0].__setitem__("horizon", "x")), r"horizon must be"),
     (_index(lambda i: i["types"][0].__setitem__("features", 3)), r"'types' entry"),
@@ -117,9 +117,12 @@ CASES = [
     (_index(lambda i: i["config"].__setitem__("seed", "zero")), r"config.seed"),
     (_index(lambda i: i["config"]["policy"].__setitem__("input_margin", "x")), r"input_margin"),
     (_index(lambda i: i.__setitem__("skills", {"a": 1})), r"'skills' is not a list"),
-    (_set("net/w1", lambda w: w[:, :-1]), r"Op0 policy: layer 1 has shapes"),
-    (_set("net/w0", lambda w: w * np.nan), r"Op0 policy: weights hold NaN or inf"),
-    (_set("generator/b0", lambda b: b + np.inf, "Op0.sampler.npz"), r"Op0 generator: weights"),
+    (_set("net/w1", lambda w: w[:, :-1]), r"Holding policy: layer 1 has shapes"),
+    (_set("net/w0", lambda w: w * np.nan), r"Holding policy: weights hold NaN or inf"),
+    (
+        _set("generator/b0", lambda b: b + np.inf, "Holding.sampler.npz"),
+        r"Holding generator: weights",
+    ),
     (_set("dims/state_dims", lambda d: d + 100), r"state_dims .* out of range"),
     (_set("dims/size", lambda s: s + 1), r"scope size"),
     (_set("net/input_std", lambda s: -s), r"input_std must be positive"),
@@ -141,6 +144,6 @@ def test_index_that_is_a_fifo_does_not_hang(skills_copy):
 
 
 def test_symlink_inside_the_directory_is_allowed(skills_copy):
-    os.rename(skills_copy / "Op0.policy.npz", skills_copy / "Op0.policy.real.npz")
-    os.symlink("Op0.policy.real.npz", skills_copy / "Op0.policy.npz")
+    os.rename(skills_copy / "Holding.policy.npz", skills_copy / "Op0.policy.real.npz")
+    os.symlink("Op0.policy.real.npz", skills_copy / "Holding.policy.npz")
     assert len(load_skills(skills_copy, toy.PREDICATES, toy.TYPES).skills) == 2
