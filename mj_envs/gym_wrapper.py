@@ -22,6 +22,7 @@ GYM_IDS = {
     "cover": "bpns/Cover-v0",
     "stick_button": "bpns/StickButton-v0",
     "coffee": "bpns/Coffee-v0",
+    "doors": "bpns/Doors-v0",
 }
 
 

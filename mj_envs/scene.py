@@ -25,8 +25,13 @@ def _panda_xml() -> str:
     return (ASSETS_DIR / "panda.xml").read_text()
 
 
-def make_arena(model_name: str, nuserdata: int, timestep: float = 0.002) -> mjcf.RootElement:
-    """An arena with physics settings that hold grasps, a table, lights and cameras."""
+def make_arena(
+    model_name: str, nuserdata: int, timestep: float = 0.002, with_panda: bool = True
+) -> mjcf.RootElement:
+    """An arena with physics settings that hold grasps, a table, lights and cameras.
+
+    ``with_panda=False`` leaves the robot out, for scenes that mount it elsewhere (a
+    mobile base)."""
     arena = mjcf.RootElement(model=model_name)
     opt = arena.option
     opt.timestep = timestep
@@ -98,7 +103,8 @@ def make_arena(model_name: str, nuserdata: int, timestep: float = 0.002) -> mjcf
     )
     wb.add("camera", name="front", pos=(1.6, 0.0, 0.55), mode="targetbody", target=focus, fovy=40)
     wb.add("camera", name="top", pos=(0.5, 0.0, 1.6), quat=(0.7071068, 0, 0, 0.7071068), fovy=45)
-    arena.attach(mjcf.from_xml_string(_panda_xml(), model_dir=str(ASSETS_DIR)))
+    if with_panda:
+        arena.attach(mjcf.from_xml_string(_panda_xml(), model_dir=str(ASSETS_DIR)))
     return arena
 
 
