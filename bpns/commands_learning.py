@@ -84,6 +84,7 @@ def cmd_learn(args: argparse.Namespace) -> int:
     from bpns.datasets import DatasetError, count_demonstrations, iter_demonstrations
     from bpns.learning import learn_skills, save_skills
     from bpns.learning.config import learning_config_for
+    from bpns.learning.given import given_skills_of
 
     if args.out.exists() and not args.overwrite:
         raise UserError(f"{args.out} exists; pass --overwrite to replace it")
@@ -130,7 +131,9 @@ def cmd_learn(args: argparse.Namespace) -> int:
             print(f"  {message}", file=sys.stderr, flush=True)
 
     try:
-        learned = learn_skills(demos, env.predicates, env.contact_predicates, config, report)
+        learned = learn_skills(
+            demos, env.predicates, env.contact_predicates, config, report, given_skills_of(env)
+        )
     except ValueError as err:
         raise UserError(f"cannot learn from {args.demos}: {err}") from None
     save_skills(learned, args.out, overwrite=True, env_name=env.name)
@@ -155,13 +158,14 @@ def skills_args(p: argparse.ArgumentParser) -> None:
 def load_learned(directory: Path, env_name: str | None = None):
     """(environment, LearnedSkills) of a skills directory, errors as UserError."""
     from bpns.learning.artifacts import ArtifactError, load_skills, saved_env_name
+    from bpns.learning.given import given_skills_of
 
     try:
         name = env_name or saved_env_name(directory)
         if name is None:
             raise UserError(f"{directory} does not record its environment; pass --env")
         env = env_by_name(name)
-        return env, load_skills(directory, env.predicates, env.types)
+        return env, load_skills(directory, env.predicates, env.types, given_skills_of(env))
     except ArtifactError as err:
         raise UserError(str(err)) from None
 

@@ -188,8 +188,11 @@ def skills_for(spec: EvalSpec, env: Environment) -> list[Skill]:
     if spec.skills_dir is None:
         raise ValueError(f"approach {spec.approach!r} needs a skills directory")
     from bpns.learning.artifacts import load_skills
+    from bpns.learning.given import given_skills_of
 
-    return list(load_skills(spec.skills_dir, env.predicates, env.types).skills)
+    return list(
+        load_skills(spec.skills_dir, env.predicates, env.types, given_skills_of(env)).skills
+    )
 
 
 def solve_task(

@@ -8,11 +8,13 @@ from bpns.registry import UnknownEnvironmentError
 from mj_envs.base import MujocoEnv
 from mj_envs.coffee import CoffeeEnv
 from mj_envs.cover import CoverEnv
+from mj_envs.doors.env import DoorsEnv
 from mj_envs.stick_button import StickButtonEnv
 
 ENVIRONMENTS: dict[str, Callable[[], MujocoEnv]] = {
     "coffee": CoffeeEnv,
     "cover": CoverEnv,
+    "doors": DoorsEnv,
     "stick_button": StickButtonEnv,
 }
 

@@ -23,6 +23,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from bpns.learning.given import GivenSkill
 from bpns.structs import LiftedAtom, Object, Skill, State, STRIPSOperator, Variable
 from mj_envs.doors.motion import BasePlanner, NoPathFound, path_seed, scene_boxes
 from mj_envs.doors.rules import (
@@ -229,10 +230,14 @@ class OpenDoorPolicy:
 
 
 class MoveThroughDoorPolicy:
-    """Given skill: arm in carry pose, straight through the doorway into room ``to``."""
+    """Given skill: arm in carry pose, straight through the doorway into room ``to``
+    (the operator parameter at ``to_index``)."""
+
+    def __init__(self, to_index: int = 3) -> None:
+        self.to_index = to_index
 
     def __call__(self, state: State, objects: Sequence[Object], subgoal: np.ndarray) -> np.ndarray:
-        robot, door, to_room = objects[0], objects[1], objects[3]
+        robot, door, to_room = objects[0], objects[1], objects[self.to_index]
         room_xy = np.array([state.get(to_room, "x"), state.get(to_room, "y")])
         goal_xy, goal_yaw = approach_pose(state, door, _side(state, door, room_xy))
         xy, yaw, *_ = _robot(state, robot)
@@ -328,4 +333,30 @@ def oracle_skills() -> list[Skill]:
         Skill(MOVE_TO_DOOR_FROM_DOORWAY, MoveToDoorPolicy(1), given),
         Skill(OPEN_DOOR, OpenDoorPolicy(), OpenDoorSampler()),
         Skill(MOVE_THROUGH_DOOR, MoveThroughDoorPolicy(), given),
+    ]
+
+
+# -- given skills (bpns.learning.given): what the motion planner provides -----------------------
+MOVE_TO_DOOR_SIGNATURE = _op(
+    "MoveToDoor", (_R, _D), set(), {_a(IN_DOORWAY, _R, _D), _a(TOUCHING_DOOR, _R, _D)}, set()
+)
+MOVE_THROUGH_DOOR_SIGNATURE = _op(
+    "MoveThroughDoor",
+    (_R, _D, _TO),
+    {_a(IN_DOORWAY, _R, _D), _a(DOOR_IS_OPEN, _D), _a(DOOR_IN_ROOM, _D, _TO)},
+    {_a(IN_ROOM, _R, _TO)},
+    set(),
+)
+
+
+def given_skills() -> list[GivenSkill]:
+    """MoveToDoor and MoveThroughDoor: any learned operator they produce uses them."""
+    return [
+        GivenSkill("MoveToDoor", MOVE_TO_DOOR_SIGNATURE, MoveToDoorPolicy(1), CurrentSubgoal()),
+        GivenSkill(
+            "MoveThroughDoor",
+            MOVE_THROUGH_DOOR_SIGNATURE,
+            MoveThroughDoorPolicy(2),
+            CurrentSubgoal(),
+        ),
     ]
