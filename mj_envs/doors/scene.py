@@ -187,6 +187,11 @@ def build_xml(plan: FloorPlan, base: BaseConfig, nuserdata: int) -> str:
         xyaxes=(0.7071, -0.7071, 0, 0.45, 0.45, 0.77),
         fovy=50,
     )
+    # a close view of the hand's work in front of the base (turning a handle)
+    focus = base_body.add("body", name="closeup_focus", pos=(0.55, 0.0, 0.0))
+    base_body.add(
+        "camera", name="closeup", pos=(-0.3, -0.9, 0.75), mode="targetbody", target=focus, fovy=60
+    )
     return arena.to_xml_string()
 
 
