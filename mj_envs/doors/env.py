@@ -14,7 +14,9 @@ Rules (final, as simulated):
   goal ``InRoom(robot, another random room)``. Horizon 1500 steps.
 * **Doors.** A leaf (a 5 cm board filling the doorway up to the wall top) on a slide joint
   along the wall: a *pocket door* that slides into the wall (the leaf collides with the
-  robot but not with the walls). Sliding is what a mobile arm can really do from the
+  robot but not with the walls; it slides towards the side where the wall line goes on
+  inside the map, so the part past the room's corner hides in the next wall). Sliding is
+  what a mobile arm can really do from the
   doorway without a swing arc sweeping the base's approach lane. A spring pulls the leaf
   open; a *latch* (a joint equality, ``eq_active``) holds it shut. The latch releases for
   good after a control step that ends with the door's handle within 0.04 rad of the
@@ -209,6 +211,7 @@ class DoorsEnv(MujocoEnv):
                 "base": BaseIds.of(m),
                 "site": m.site(ROBOT_PREFIX + "grip_site").id,
                 "finger_q": m.joint(ROBOT_PREFIX + "finger_joint1").qposadr[0],
+                "twist_q": m.joint(ROBOT_PREFIX + "joint7").qposadr[0],
                 "finger_geoms": frozenset(g for g in range(m.ngeom) if m.geom_bodyid[g] in fingers),
                 "latch": [m.equality(f"door{k}_latch").id for k in range(n)],
                 "handle_q": [m.joint(f"door{k}_handle_joint").qposadr[0] for k in range(n)],
@@ -260,7 +263,9 @@ class DoorsEnv(MujocoEnv):
                 hand = d.site_xpos[ids["site"]]
                 xmat = d.site_xmat[ids["site"]]
                 wrist = math.atan2(xmat[3], xmat[0])  # world yaw of the hand's x axis
-                out[obj] = np.array([x, y, yaw, *hand, wrist, d.qpos[ids["finger_q"]]])
+                out[obj] = np.array(
+                    [x, y, yaw, *hand, wrist, d.qpos[ids["finger_q"]], d.qpos[ids["twist_q"]]]
+                )
             elif obj.type == DOOR:
                 k = int(obj.name[len("door") :])
                 dx, dy, theta = ids["door_pose"][k]

@@ -49,7 +49,8 @@ def required_angle(mass: float, friction: float, target_rot: float) -> float:
     return math.tanh(target_rot) * (math.sin(mass) + math.cos(friction) * math.sqrt(mass))
 
 
-ROBOT = Type("robot", ("x", "y", "yaw", "hand_x", "hand_y", "hand_z", "wrist", "fingers"))
+# wrist: the hand's yaw in the world; twist: the arm's last joint (which turns the hand)
+ROBOT = Type("robot", ("x", "y", "yaw", "hand_x", "hand_y", "hand_z", "wrist", "fingers", "twist"))
 DOOR = Type(
     "door",
     (

@@ -91,7 +91,16 @@ def sample_plan(rng: np.random.Generator, sizes: tuple[int, ...]) -> FloorPlan:
                 ((0, 1), (cx, cy + h), 0.0),  # wall along x
             ):
                 if i + di < rows and j + dj < cols:
-                    theta = theta + (math.pi if rng.random() < 0.5 else 0.0)  # handle side
+                    # The leaf slides along -u into the wall line, 0.35 m past the room's
+                    # corner: towards the side where the wall line goes on inside the map
+                    # (hidden in the next wall), either way if both do.
+                    flip = rng.random() < 0.5
+                    k, n = (j, cols) if di else (i, rows)
+                    if k == 0:
+                        flip = True
+                    elif k == n - 1:
+                        flip = False
+                    theta = theta + (math.pi if flip else 0.0)
                     doors.append(
                         DoorSpec(
                             (i, j),

@@ -56,6 +56,7 @@ FINGERS_OPEN, FINGERS_GRIP = 0.035, 0.016
 TURN_GAIN = 0.3
 TURN_MAX = 0.06
 ROT_NOISE = HANDLE_TOLERANCE / 3
+J7_GRASP = 0.85  # joint 7 at the grasp: the opening turn (<= 1.75 rad) then stays in range
 
 
 def _wrap(a: float) -> float:
@@ -187,18 +188,29 @@ def reach_handle(state: State, robot: Object, door: Object) -> np.ndarray:
     """Open fingers above the wing, aligned with it; descend; close until touching."""
     xy, yaw, hand, wrist, fingers = _robot(state, robot)
     knob = np.array([state.get(door, "knob_x"), state.get(door, "knob_y"), KNOB_Z])
-    wing_yaw = state.get(door, "theta") + state.get(door, "rot")
-    target_wrist = wing_yaw + math.pi * round((wrist - wing_yaw) / math.pi)
+    dw = grasp_wrist_delta(state, robot, door)
     err_xy = float(np.max(np.abs(knob[:2] - hand[:2])))
-    aligned = abs(_wrap(target_wrist - wrist)) < 0.05
+    aligned = abs(dw) < 0.05
     if hand[2] > knob[2] + 0.02 and (err_xy > POS_TOL or not aligned or fingers < FINGERS_OPEN):
-        a, _ = _hand_to(state, robot, knob + np.array([0, 0, ABOVE]), target_wrist, 1.0)
-        return a
-    if hand[2] > knob[2] + 0.004:
-        a, _ = _hand_to(state, robot, knob, target_wrist, 1.0, speed=0.01)
-        return a
-    a, _ = _hand_to(state, robot, knob, target_wrist, -1.0, speed=0.005)
+        a, _ = _hand_to(state, robot, knob + np.array([0, 0, ABOVE]), wrist, 1.0)
+    elif hand[2] > knob[2] + 0.004:
+        a, _ = _hand_to(state, robot, knob, wrist, 1.0, speed=0.01)
+    else:
+        a, _ = _hand_to(state, robot, knob, wrist, -1.0, speed=0.005)
+    a[6] = float(np.clip(dw, -0.15, 0.15))
     return a
+
+
+def grasp_wrist_delta(state: State, robot: Object, door: Object) -> float:
+    """Wrist turn that aligns the fingers with the wing: of the wing's alignments (mod pi)
+    the one that leaves joint 7 ("twist") room to turn the handle up to its largest
+    opening angle (turning the hand by +a moves joint 7 by about -a)."""
+    wrist = state.get(robot, "wrist")
+    d = _wrap(state.get(door, "theta") + state.get(door, "rot") - wrist)
+    twist = state.get(robot, "twist")
+    return min(
+        (d + k * math.pi for k in (-2, -1, 0, 1, 2)), key=lambda c: abs(twist - c - J7_GRASP)
+    )
 
 
 class OpenDoorPolicy:
