@@ -16,8 +16,8 @@ Rules (final, as simulated):
   along the wall: a *pocket door* that slides into the wall (the leaf collides with the
   robot but not with the walls; it slides towards the side where the wall line goes on
   inside the map, so the part past the room's corner hides in the next wall). Sliding is
-  what a mobile arm can really do from the
-  doorway without a swing arc sweeping the base's approach lane. A spring pulls the leaf
+  what a mobile arm can really do from the doorway without a swing arc sweeping the
+  base's approach lane. A spring pulls the leaf
   open; a *latch* (a joint equality, ``eq_active``) holds it shut. The latch releases for
   good after a control step that ends with the door's handle within 0.04 rad of the
   door's own angle ``tanh(target_rot) * (sin(mass) + cos(friction) * sqrt(mass))``, where
@@ -31,15 +31,25 @@ Rules (final, as simulated):
   (8): the base's target offset from its measured pose, (dx, dy) in the world frame
   (<= 8 cm: the servo then moves it <= ~4 cm per 0.05 s step) and dyaw (<= 0.25 rad),
   hand (dx, dy, dz) in the *base* frame (<= 2 cm), a wrist turn about the vertical
-  (<= 0.15 rad) and the finger command in [-1, 1].
+  (<= 0.15 rad) and the finger command in [-1, 1]. Robot features: the base's measured
+  pose (x, y, yaw), the grip site (world), the hand's yaw (wrist), the finger opening and
+  the arm's last joint (twist: the turn the wrist has left before its limit).
 * **Predicates.** InRoom(robot, room): the base's centre is in the room's cell.
   InDoorway(robot, door): the base's centre within 0.45 m along and 0.75 m across the
   doorway. InMainRoom(robot, room): in the room and in no doorway. TouchingDoor(robot,
   door): a finger geom touches the door's handle (MuJoCo contact list). DoorIsOpen(door):
   the leaf slid >= 0.8 m (joint reading). DoorInRoom(door, room) and
   DoorsShareRoom(door, door): static. Contact-related: TouchingDoor, InRoom (paper).
-* **Given skills.** MoveToDoor and MoveThroughDoor come from a motion planner
-  (:mod:`mj_envs.doors.motion`); OpenDoor is learned (:mod:`mj_envs.doors.skills`).
+* **Skills.** MoveToDoor (drive to the door's approach pose on a planned path, then put
+  the fingers on its handle: TouchingDoor is where the demonstrations' segments end) and
+  MoveThroughDoor (straight through the open doorway until InRoom of the far room) are
+  *given*: ``given_skills()`` (:mod:`bpns.learning.given`), policies on the base motion
+  planner (:mod:`mj_envs.doors.motion`, a seeded RRT-Connect among walls, obstacles and
+  closed leaves). OpenDoor (grip, turn to the angle, wait, let go) is learned. Operators
+  are learned for all four (:mod:`mj_envs.doors.skills` has the oracle's).
+* **Not modelled.** The arm is never checked against walls (they stay below it); the
+  planner's disc is the pedestal plus 4 cm; the leaf's part past the room's corner is
+  hidden in the walls, except on an outer wall of a map one room wide.
 """
 
 from __future__ import annotations
