@@ -11,7 +11,8 @@ Rules (final, as simulated):
   both axes), so the cross-shaped band through the room's centre, where the robot starts
   and every approach lane runs, stays free. Train and eval tasks come from the same
   distribution (as in the paper): start near the centre of a random room (random yaw),
-  goal ``InRoom(robot, another random room)``. Horizon 1500 steps.
+  goal ``InRoom(robot, another random room)``. Horizon 1500 steps, or 350 per door on
+  the longest room path of larger maps.
 * **Doors.** A leaf (a 5 cm board filling the doorway up to the wall top) on a slide joint
   along the wall: a *pocket door* that slides into the wall (the leaf collides with the
   robot but not with the walls; it slides towards the side where the wall line goes on
@@ -85,6 +86,7 @@ from mj_envs.mobile_panda import BaseConfig, BaseIds, base_pose, command_base
 from mj_envs.world import DOMAIN_USERDATA_START, POSE_SLICE, ROBOT_PREFIX, World
 
 MAX_GRID = 5
+STEPS_PER_DOOR = 350
 
 
 class DoorsEnv(MujocoEnv):
@@ -162,7 +164,8 @@ class DoorsEnv(MujocoEnv):
             xml=xml,
             objects=(robot, *doors, *rooms),
             goal=goal,
-            horizon=HORIZON,
+            # the longest room path crosses rows + cols - 2 doors
+            horizon=max(HORIZON, STEPS_PER_DOOR * (plan.rows + plan.cols - 2)),
             init_qpos={f"door{k}_handle_joint": np.array([HANDLE_REST]) for k in range(n)},
             init_userdata={
                 DOMAIN_USERDATA_START + k: d.target_rot for k, d in enumerate(plan.doors)
