@@ -128,8 +128,7 @@ def json_attr(group: h5py.Group, name: str) -> Any:
 def parse_objects(value: Any) -> list[tuple[str, str]]:
     """The ``objects`` attribute: a list of distinct [name, type name] string pairs."""
     if not isinstance(value, list) or not all(
-        isinstance(p, list) and len(p) == 2 and all(isinstance(s, str) for s in p)
-        for p in value
+        isinstance(p, list) and len(p) == 2 and all(isinstance(s, str) for s in p) for p in value
     ):
         raise ValueError("attribute 'objects' is not a list of [name, type] strings")
     names = [p[0] for p in value]

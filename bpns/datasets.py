@@ -168,4 +168,3 @@ def _read_demo(g: h5py.Group, env: Environment) -> Demonstration:
         goal.add(GroundAtom(preds[pname], tuple(objects[o] for o in args)))  # TypeError: arity
     task = Task(init=states[0], goal=frozenset(goal), horizon=horizon)
     return Demonstration(task=task, states=states, actions=actions)
-

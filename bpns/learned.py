@@ -6,6 +6,7 @@ import os
 
 from bpns.environment import Environment
 from bpns.learning.artifacts import ArtifactError, load_skills, saved_env_name
+from bpns.learning.given import given_skills_of
 from bpns.learning.pipeline import LearnedSkills
 from bpns.registry import make_environment
 
@@ -20,4 +21,4 @@ def load_learned(
     if name is None:
         raise ArtifactError(f"{directory} does not record its environment; pass --env")
     env = make_environment(name)
-    return env, load_skills(directory, env.predicates, env.types)
+    return env, load_skills(directory, env.predicates, env.types, given_skills_of(env))

@@ -167,6 +167,7 @@ def learn_to_directory(
     demos cannot be learned from."""
     from bpns.datasets import count_demonstrations, iter_demonstrations
     from bpns.learning import learn_skills, save_skills
+    from bpns.learning.given import given_skills_of
 
     total = count_demonstrations(demos_path)
     n = min(total, limit or total)
@@ -177,7 +178,9 @@ def learn_to_directory(
 
     torch.set_num_threads(threads)
     try:
-        learned = learn_skills(demos, env.predicates, env.contact_predicates, config, report)
+        learned = learn_skills(
+            demos, env.predicates, env.contact_predicates, config, report, given_skills_of(env)
+        )
     except ValueError as err:
         raise CannotLearnError(f"cannot learn from {demos_path}: {err}") from None
     save_skills(learned, out, overwrite=True, env_name=env.name)

@@ -96,6 +96,10 @@ class MujocoEnv(abc.ABC):
         """
         return action[:3], None, float(action[3])
 
+    def before_control(self, action: np.ndarray, world: World) -> None:  # noqa: B027
+        """Act on what the arm's controller does not drive (e.g. a mobile base's position
+        targets in ``ctrl``), before the arm's targets are set; an optional hook."""
+
     def demonstrator(self, task: Task, rng: np.random.Generator):
         """A scripted closed-loop policy State -> action for ``task`` (actions only)."""
         raise NotImplementedError(f"{self.name} has no scripted demonstrator")
@@ -187,6 +191,7 @@ class MujocoEnv(abc.ABC):
         world = state.sim.world
         assert isinstance(world, World)
         world.load(state.sim.flat)
+        self.before_control(action, world)
         dpos, drot, dgrip = self.command(action, world)
         world.controller.apply(world.data, POSE_SLICE, dpos, drot, dgrip, self.grip_enabled(state))
         world.step_physics()

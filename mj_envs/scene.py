@@ -22,13 +22,18 @@ OVERVIEW_POS, OVERVIEW_TARGET = (1.4, -1.0, 0.95), (0.35, 0.0, 0.3)
 
 
 def make_arena(
-    model_name: str, domain_userdata: int = 0, timestep: float = 0.002, robot: Robot = PANDA
+    model_name: str,
+    domain_userdata: int = 0,
+    timestep: float = 0.002,
+    robot: Robot | None = PANDA,
 ) -> mjcf.RootElement:
     """An arena with physics settings that hold grasps, a table, lights, cameras and the
     robot attached under its prefix.
 
     ``domain_userdata`` slots follow the controller's in ``data.userdata`` (from
     ``DOMAIN_USERDATA_START``): domain state that must be saved with the simulator state.
+    ``robot=None`` leaves the robot out, for scenes that mount it elsewhere (on a mobile
+    base: :mod:`mj_envs.robots.mobile_panda`).
     """
     arena = mjcf.RootElement(model=model_name)
     opt = arena.option
@@ -105,7 +110,8 @@ def make_arena(
     )
     wb.add("camera", name="front", pos=(1.6, 0.0, 0.55), mode="targetbody", target=focus, fovy=40)
     wb.add("camera", name="top", pos=(0.5, 0.0, 1.6), quat=(0.7071068, 0, 0, 0.7071068), fovy=45)
-    arena.attach(mjcf.from_xml_string(robot_mjcf_text(robot), model_dir=str(robot.mjcf.parent)))
+    if robot is not None:
+        arena.attach(mjcf.from_xml_string(robot_mjcf_text(robot), model_dir=str(robot.mjcf.parent)))
     return arena
 
 

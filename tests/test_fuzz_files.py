@@ -325,9 +325,7 @@ def _check_skills_finite(skills) -> None:
 
 @PROFILE
 @given(mutations=st.lists(skills_mutation(), min_size=1, max_size=3))
-def test_fuzzed_skills_directories_load_finite_or_raise_artifact_error(
-    toy_skills_dir, mutations
-):
+def test_fuzzed_skills_directories_load_finite_or_raise_artifact_error(toy_skills_dir, mutations):
     with tempfile.TemporaryDirectory() as tmp:
         directory = Path(tmp) / "skills"
         shutil.copytree(toy_skills_dir, directory)

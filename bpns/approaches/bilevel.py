@@ -63,8 +63,9 @@ def oracle_skills(env: Environment) -> list[Skill]:
 def learned_skills(env: Environment, skills_dir: str | Path) -> list[Skill]:
     """The skills saved in ``skills_dir``, bound to ``env``'s predicates and types."""
     from bpns.learning.artifacts import load_skills
+    from bpns.learning.given import given_skills_of
 
-    return list(load_skills(skills_dir, env.predicates, env.types).skills)
+    return list(load_skills(skills_dir, env.predicates, env.types, given_skills_of(env)).skills)
 
 
 def _with_learned(env: Environment, config: PlanningConfig, skills_dir: Path | None) -> Approach:

@@ -38,8 +38,6 @@ def run(args: argparse.Namespace) -> int:
     env = env_by_name(args.env)
     check_output_file(args.out, "--out", args.overwrite)
     workers = capped_to_cores(args.workers, "--workers")
-    written = collect_demos(
-        env, args.num, args.seed, args.out, workers, progress, debug=args.debug
-    )
+    written = collect_demos(env, args.num, args.seed, args.out, workers, progress, debug=args.debug)
     print_lines(written)
     return 0 if written.num_written else 1

@@ -84,6 +84,7 @@ def _learn(job: CellJob) -> dict[str, Any]:
 
     from bpns.datasets import iter_demonstrations
     from bpns.learning import learn_skills, save_skills
+    from bpns.learning.given import given_skills_of
     from bpns.registry import make_environment
 
     assert job.cell.learning is not None and job.num_demos is not None
@@ -92,7 +93,13 @@ def _learn(job: CellJob) -> dict[str, Any]:
     t0 = time.perf_counter()
     demos = list(iter_demonstrations(job.inputs[0], env, range(job.num_demos)))
     load_seconds = time.perf_counter() - t0
-    learned = learn_skills(demos, env.predicates, env.contact_predicates, job.cell.learning)
+    learned = learn_skills(
+        demos,
+        env.predicates,
+        env.contact_predicates,
+        job.cell.learning,
+        given=given_skills_of(env),
+    )
     save_skills(learned, job.output, overwrite=True, env_name=env.name)
     assert learned.stats is not None
     return {

@@ -183,11 +183,25 @@ def check_index_schema(index: Mapping[str, Any]) -> None:
                     all(a in {p[0] for p in params} for a in args),
                     f"skill {name}: {key!r} names an unknown parameter",
                 )
-        _require(isinstance(e.get("policy"), str), f"skill {name}: 'policy' is not a file name")
-        _require(
-            "sampler" in e and (e["sampler"] is None or isinstance(e["sampler"], str)),
-            f"skill {name}: 'sampler' is not a file name or null",
-        )
+        if e.get("given") is not None:  # an environment's given skill: no weights
+            _require(isinstance(e["given"], str), f"skill {name}: 'given' is not a name")
+            binding = e.get("binding")
+            _require(
+                isinstance(binding, list)
+                and all(_is_int(i) for i in binding)
+                and sorted(binding) == list(range(len(params))),
+                f"skill {name}: 'binding' is not a permutation of its parameters",
+            )
+            _require(
+                e.get("policy") is None and e.get("sampler") is None,
+                f"skill {name}: a given skill has no weight files",
+            )
+        else:
+            _require(isinstance(e.get("policy"), str), f"skill {name}: 'policy' is not a file name")
+            _require(
+                "sampler" in e and (e["sampler"] is None or isinstance(e["sampler"], str)),
+                f"skill {name}: 'sampler' is not a file name or null",
+            )
         horizon = e.get("horizon")
         _require(
             horizon is None or (_is_int(horizon) and horizon >= 1),
@@ -323,9 +337,7 @@ def check_network(
         _require(a is None or a.shape == (input_dim,), f"{where}: {name} has the wrong shape")
     _require(bool(np.all(params.input_std > 0)), f"{where}: input_std must be positive")
     n_out = params.output_mean.shape
-    _require(
-        n_out == params.output_std.shape and len(n_out) == 1, f"{where}: output stats shapes"
-    )
+    _require(n_out == params.output_std.shape and len(n_out) == 1, f"{where}: output stats shapes")
     arrays = [*ws, *bs, params.input_mean, params.input_std, params.output_mean, params.output_std]
     arrays += [a for a in (params.input_low, params.input_high) if a is not None]
     _require(all(np.all(np.isfinite(a)) for a in arrays), f"{where}: weights hold NaN or inf")
@@ -334,9 +346,7 @@ def check_network(
         folded = [ws[0] * inv_std[:, None], (params.input_mean * inv_std) @ ws[0]]
         if params.output_std.shape == (ws[-1].shape[1],):
             folded += [ws[-1] * params.output_std, bs[-1] * params.output_std]
-    _require(
-        all(np.all(np.isfinite(a)) for a in folded), f"{where}: weights overflow at inference"
-    )
+    _require(all(np.all(np.isfinite(a)) for a in folded), f"{where}: weights overflow at inference")
     if params.input_low is not None:
         _require(bool(np.all(params.input_low <= params.input_high)), f"{where}: input box")
 
@@ -361,8 +371,6 @@ def check_skill_arrays(policy: Any, sampler: Any, scope_size: int, name: str) ->
     ns, ng = len(sdims.state_dims), len(sdims.subgoal_dims)
     _require(1 <= sampler.max_tries <= 1_000_000, f"{name} sampler: max_tries")
     check_network(sampler.generator_params, ns, lambda n: n == 2 * ng, f"{name} generator")
-    _require(
-        sampler.generator_params.output_mean.shape == (ng,), f"{name} generator: output stats"
-    )
+    _require(sampler.generator_params.output_mean.shape == (ng,), f"{name} generator: output stats")
     if sampler.classifier_params is not None:
         check_network(sampler.classifier_params, ns + ng, lambda n: n == 1, f"{name} classifier")

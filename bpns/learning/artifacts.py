@@ -7,6 +7,9 @@ Layout of a skills directory:
                          for any PDDL planner)
     <Op>.policy.npz      policy weights and scope dimensions
     <Op>.sampler.npz     sampler weights (absent for skills without subgoals)
+A skill whose policy and sampler are an environment's given skill
+(:mod:`bpns.learning.given`) has no weights: its entry names the given skill and the
+parameter binding, and loading looks it up among the environment's given skills.
 
 Predicates are classifiers (code), so they are not saved: loading binds the saved
 predicate and type *names* to the environment's objects and refuses a mismatch.
@@ -32,6 +35,7 @@ from bpns.atomic import recover_directory, replace_directory
 from bpns.learning import artifact_checks as checks
 from bpns.learning.config import LearningConfig, MLPConfig
 from bpns.learning.demo_checks import check_finite_arrays
+from bpns.learning.given import BoundPolicy, BoundSampler, GivenSkill
 from bpns.learning.pipeline import LearnedSkills, LearningStats, SkillStats
 from bpns.learning.policies import LearnedPolicy
 from bpns.learning.samplers import CurrentStateSampler, LearnedSampler
@@ -103,18 +107,22 @@ def save_skills(
 
 def _write_skill(skill: Skill, directory: Path) -> dict[str, Any]:
     op = skill.operator
+    if isinstance(skill.policy, BoundPolicy):
+        return {
+            **_operator_json(skill),
+            "horizon": skill.horizon,
+            "policy": None,
+            "sampler": None,
+            "given": skill.policy.given.name,
+            "binding": list(skill.policy.binding),
+        }
     if not isinstance(skill.policy, LearnedPolicy):
         raise TypeError(f"{op.name}: only LearnedPolicy can be saved, got {type(skill.policy)}")
     policy_file = f"{op.name}.policy.npz"
     check_finite_arrays(skill.policy.to_arrays(), f"{op.name} policy")
     np.savez(directory / policy_file, **skill.policy.to_arrays())
     entry: dict[str, Any] = {
-        "name": op.name,
-        "parameters": [[v.name, v.type.name] for v in op.parameters],
-        "preconditions": _atoms_json(op.preconditions),
-        "add_effects": _atoms_json(op.add_effects),
-        "delete_effects": _atoms_json(op.delete_effects),
-        "order_key": op.order_key,
+        **_operator_json(skill),
         "policy": policy_file,
         "horizon": skill.horizon,
     }
@@ -127,6 +135,18 @@ def _write_skill(skill: Skill, directory: Path) -> dict[str, Any]:
     else:
         raise TypeError(f"{op.name}: cannot save a sampler of type {type(skill.sampler)}")
     return entry
+
+
+def _operator_json(skill: Skill) -> dict[str, Any]:
+    op = skill.operator
+    return {
+        "name": op.name,
+        "parameters": [[v.name, v.type.name] for v in op.parameters],
+        "preconditions": _atoms_json(op.preconditions),
+        "add_effects": _atoms_json(op.add_effects),
+        "delete_effects": _atoms_json(op.delete_effects),
+        "order_key": op.order_key,
+    }
 
 
 def _atoms_json(atoms: Iterable[LiftedAtom]) -> list[list[Any]]:
@@ -174,16 +194,23 @@ def _read_index(directory: Path) -> dict[str, Any]:
 
 
 def load_skills(
-    directory: str | os.PathLike, predicates: Iterable[Predicate], types: Iterable[Type]
+    directory: str | os.PathLike,
+    predicates: Iterable[Predicate],
+    types: Iterable[Type],
+    given: Iterable[GivenSkill] = (),
 ) -> LearnedSkills:
     """Load skills saved by :func:`save_skills`, binding names to the given predicates
-    and types. Raises :class:`ArtifactError` naming whatever does not match."""
+    and types (and given skills, by name). Raises :class:`ArtifactError` naming whatever
+    does not match."""
+    given_by_name = {g.name: g for g in given}
     directory = Path(directory)
     index = _read_index(directory)
     try:
         type_map = _bind_types(index["types"], types, directory)
         pred_map = _bind_predicates(index["predicates"], predicates, type_map, directory)
-        skills = tuple(_read_skill(e, directory, pred_map, type_map) for e in index["skills"])
+        skills = tuple(
+            _read_skill(e, directory, pred_map, type_map, given_by_name) for e in index["skills"]
+        )
         return LearnedSkills(
             skills=skills,
             predicates=frozenset(pred_map.values()),
@@ -258,6 +285,7 @@ def _read_skill(
     directory: Path,
     preds: Mapping[str, Predicate],
     types: Mapping[str, Type],
+    given: Mapping[str, GivenSkill] | None = None,
 ) -> Skill:
     variables = {n: Variable(n, types[t]) for n, t in entry["parameters"]}
 
@@ -277,6 +305,23 @@ def _read_skill(
         delete_effects=atoms("delete_effects"),
         order_key=entry.get("order_key"),  # absent in directories of Op<k>-named skills
     )
+    horizon = entry.get("horizon")
+    if entry.get("given") is not None:
+        g = (given or {}).get(entry["given"])
+        if g is None:
+            raise ArtifactError(
+                f"{directory}: skill {entry['name']} uses the given skill {entry['given']!r}, "
+                "which the environment does not declare"
+            )
+        binding = tuple(int(i) for i in entry["binding"])
+        if sorted(binding) != list(range(len(binding))) or len(binding) != len(op.parameters):
+            raise ArtifactError(f"{directory}: skill {entry['name']} has a bad binding {binding}")
+        return Skill(
+            op,
+            BoundPolicy(g, binding),
+            BoundSampler(g, binding),
+            None if horizon is None else int(horizon),
+        )
     policy_path = checks.confined_file(directory, entry["policy"])
     policy = LearnedPolicy.from_arrays(checks.read_npz(policy_path, checks.POLICY_KEYS))
     sampler: LearnedSampler | CurrentStateSampler
@@ -296,7 +341,6 @@ def _read_skill(
         sum(v.type.dim for v in scope),
         op.name,
     )
-    horizon = entry.get("horizon")
     return Skill(op, policy, sampler, None if horizon is None else int(horizon))
 
 
@@ -341,6 +385,8 @@ def describe(skills: LearnedSkills) -> str:
             extra.append(f"{counts[skill.name]} segments")
         if skill.horizon is not None:
             extra.append(f"horizon {skill.horizon}")
+        if isinstance(skill.policy, BoundPolicy):
+            extra.append(f"given skill {skill.policy.given.name}")
         if isinstance(skill.sampler, CurrentStateSampler):
             extra.append("no subgoals")
         elif isinstance(skill.sampler, LearnedSampler) and skill.sampler.classifier_params is None:

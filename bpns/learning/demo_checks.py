@@ -32,8 +32,7 @@ def check_demonstrations(demos: Sequence[Demonstration]) -> None:
             for obj, vec in state.data.items():
                 if not np.all(np.isfinite(vec)):
                     raise DemonstrationError(
-                        f"demonstration {i}: features of {obj.name} at step {step} "
-                        "hold NaN or inf"
+                        f"demonstration {i}: features of {obj.name} at step {step} hold NaN or inf"
                     )
 
 

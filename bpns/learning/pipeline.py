@@ -18,6 +18,7 @@ import numpy as np
 
 from bpns.learning.config import LearningConfig
 from bpns.learning.demo_checks import check_demonstrations
+from bpns.learning.given import BoundPolicy, BoundSampler, GivenSkill, match_given
 from bpns.learning.operators import SkillDataset, learn_operators
 from bpns.learning.partition import SegmentGroup, partition_segments
 from bpns.learning.policies import ScopeDims, learn_policy, scope_trajectories
@@ -124,11 +125,14 @@ def learn_skills(
     contact_predicates: Collection[Predicate],
     config: LearningConfig | None = None,
     report: Callable[[str], None] | None = None,
+    given: Sequence[GivenSkill] = (),
 ) -> LearnedSkills:
     """Learn neuro-symbolic skills from demonstrations (paper §4).
 
     ``report``, if given, receives one short progress message per stage and per skill
-    (for a CLI progress display); learning itself prints nothing.
+    (for a CLI progress display); learning itself prints nothing. ``given``: the
+    environment's given skills (:mod:`bpns.learning.given`); a learned operator one of
+    them produces keeps its policy and sampler instead of trained networks.
     """
     config = LearningConfig() if config is None else config
     say = report or (lambda message: None)
@@ -152,6 +156,20 @@ def learn_skills(
     skills: list[Skill] = []
     skill_stats: list[SkillStats] = []
     for k, dataset in enumerate(datasets):
+        produced_by = match_given(dataset.operator, given)
+        if produced_by is not None:  # a given skill: its policy and sampler, nothing trained
+            g, binding = produced_by
+            say(f"{dataset.operator.name}: given skill {g.name}")
+            skills.append(
+                Skill(
+                    dataset.operator,
+                    BoundPolicy(g, binding),
+                    BoundSampler(g, binding),
+                    _horizon(dataset, config),
+                )
+            )
+            skill_stats.append(SkillStats(dataset.operator.name, len(dataset), 0, 0))
+            continue
         say(f"training {dataset.operator.name} ({k + 1}/{len(datasets)}, {len(dataset)} segments)")
         with timer.stage("policies"):
             scopes = scope_trajectories(dataset)

@@ -145,6 +145,4 @@ def release_action(
     pos = hand(state, robot)
     if landed and np.hypot(*(release_xyz[:2] - pos[:2])) <= release_tol:
         return move_action(state, robot, np.array([release_xyz[0], release_xyz[1], pos[2]]), 1.0)
-    return funnel_action(
-        state, robot, release_xyz, -1.0, funnel.safe_z, funnel.slope, funnel.band
-    )
+    return funnel_action(state, robot, release_xyz, -1.0, funnel.safe_z, funnel.slope, funnel.band)

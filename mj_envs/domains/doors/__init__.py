@@ -1,0 +1,1 @@
+"""Doors: a Panda on a mobile base crosses rooms through latched doors (paper App. A)."""

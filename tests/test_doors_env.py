@@ -1,0 +1,144 @@
+"""Doors: contacts, the latch rule, exact replay, the base planner, the demonstrator."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bpns.abstraction import abstract
+from mj_envs.domains.doors.demonstrator import room_of, room_path
+from mj_envs.domains.doors.env import DoorsEnv
+from mj_envs.domains.doors.motion import BasePlanner, scene_boxes
+from mj_envs.domains.doors.rules import (
+    DOOR,
+    HANDLE_TOLERANCE,
+    OPEN_TRAVEL,
+    ROBOT,
+    door_frame,
+    door_in_room,
+    required_angle,
+)
+from mj_envs.domains.doors.skills import (
+    MoveToDoorPolicy,
+    OpenDoorPolicy,
+    approach_pose,
+    plan_base_path,
+)
+
+
+@pytest.fixture(scope="module")
+def env() -> DoorsEnv:
+    return DoorsEnv(grid_sizes=(2,))
+
+
+def _touch(env, task):
+    """Run MoveToDoor on the demonstrator's first door until its handle is touched."""
+    s = task.init
+    robot = s.objects_of_type(ROBOT)[0]
+    demo = env.demonstrator(task, np.random.default_rng(0))
+    door = room_path(s, room_of(s, robot), demo.goal_room)[0][0]
+    policy = MoveToDoorPolicy(1)
+    for _ in range(300):
+        if s.get(door, "touched") > 0.5:
+            return s, robot, door
+        s = env.simulate(s, policy(s, (robot, door), s.vec((robot, door))))
+    raise AssertionError("the handle was never touched")
+
+
+def _contact_with_wing(env, state, door) -> bool:
+    world = state.sim.world
+    world.load(state.sim.flat)
+    return int(door.name[4:]) in env.touched_doors(world)
+
+
+def test_touching_door_follows_finger_contacts(env):
+    task = env.train_tasks(1, seed=5)[0]
+    doors = task.init.objects_of_type(DOOR)
+    assert all(task.init.get(d, "touched") == 0.0 for d in doors)
+    s, robot, door = _touch(env, task)
+    assert _contact_with_wing(env, s, door)
+    # open the fingers and lift: the contact (and the predicate) goes away
+    for _ in range(15):
+        s = env.simulate(s, np.array([0, 0, 0, 0, 0, 0.01, 0, 1.0]))
+    assert s.get(door, "touched") == 0.0 and not _contact_with_wing(env, s, door)
+
+
+def test_latch_releases_only_at_the_doors_angle_then_the_leaf_opens(env):
+    task = env.train_tasks(1, seed=5)[0]
+    s, robot, door = _touch(env, task)
+    angle = required_angle(s.get(door, "mass"), s.get(door, "friction"), s.get(door, "target_rot"))
+    policy = OpenDoorPolicy()
+    wrong = s.vec((robot, door)).copy()
+    wrong[OpenDoorPolicy.ROT] = angle - 4 * HANDLE_TOLERANCE
+    for _ in range(60):
+        s = env.simulate(s, policy(s, (robot, door), wrong))
+    assert abs(s.get(door, "rot") - wrong[OpenDoorPolicy.ROT]) < 2 * HANDLE_TOLERANCE
+    world = s.sim.world
+    world.load(s.sim.flat)
+    latch = world.model.equality(f"{door.name}_latch").id
+    assert world.data.eq_active[latch] == 1 and s.get(door, "open") < 0.01
+    right = wrong.copy()
+    right[OpenDoorPolicy.ROT] = angle
+    for _ in range(80):
+        s = env.simulate(s, policy(s, (robot, door), right))
+        if s.get(door, "open") >= OPEN_TRAVEL:
+            break
+    assert s.get(door, "open") >= OPEN_TRAVEL
+    world.load(s.sim.flat)
+    assert world.data.eq_active[latch] == 0
+
+
+def test_a_short_demo_replays_exactly(env):
+    task = env.train_tasks(1, seed=3)[0]
+    demo = env.demonstrator(task, np.random.default_rng(0))
+    states, actions = [task.init], []
+    for _ in range(80):
+        actions.append(demo(states[-1]))
+        states.append(env.simulate(states[-1], actions[-1]))
+    s = task.init
+    for a, expected in zip(actions, states[1:], strict=True):
+        s = env.simulate(s, a)
+        assert np.array_equal(s.sim.flat, expected.sim.flat)
+
+
+def test_base_planner_paths_are_collision_free_and_seeded(env):
+    task = env.train_tasks(1, seed=1)[0]
+    model = task.init.sim.world.model
+    planner = BasePlanner(scene_boxes(model, frozenset()), np.zeros(2), np.array([4.0, 4.0]))
+    start, goal = np.array([1.0, 1.0]), np.array([3.0, 3.0])  # opposite rooms: not straight
+    assert not planner.segment_free(start, goal)
+    paths = [planner.plan(start, goal, np.random.default_rng(7)) for _ in range(2)]
+    assert len(paths[0]) > 2
+    assert all(np.array_equal(a, b) for a, b in zip(*paths, strict=True))
+    for a, b in zip(paths[0][:-1], paths[0][1:], strict=True):
+        assert planner.segment_free(a, b)
+
+
+def test_given_skills_are_deterministic(env):
+    task = env.train_tasks(1, seed=2)[0]
+    s = task.init
+    robot = s.objects_of_type(ROBOT)[0]
+    door = s.objects_of_type(DOOR)[0]
+    policy = MoveToDoorPolicy(1)
+    a1 = policy(s, (robot, door), s.vec((robot, door)))
+    a2 = MoveToDoorPolicy(1)(s, (robot, door), s.vec((robot, door)))
+    assert np.array_equal(a1, a2)
+    xy = np.array([s.get(robot, "x"), s.get(robot, "y")])
+    near = next(d for d in s.objects_of_type(DOOR) if door_in_room(s, d, room_of(s, robot)))
+    goal, _ = approach_pose(
+        s, near, 1.0 if float((xy - door_frame(s, near)[0]) @ door_frame(s, near)[2]) > 0 else -1.0
+    )
+    p1, p2 = plan_base_path(s, goal), plan_base_path(s, goal)
+    assert all(np.array_equal(a, b) for a, b in zip(p1, p2, strict=True))
+
+
+@pytest.mark.parametrize("index", [0, 1])
+def test_demonstrator_solves_small_tasks(env, index):
+    task = env.train_tasks(2, seed=11)[index]
+    demo = env.demonstrator(task, np.random.default_rng(0))
+    s = task.init
+    for _ in range(task.horizon):
+        if task.goal_holds(abstract(s, env.predicates)):
+            break
+        s = env.simulate(s, demo(s))
+    assert task.goal_holds(abstract(s, env.predicates))
