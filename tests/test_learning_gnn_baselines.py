@@ -201,3 +201,27 @@ def test_models_refuse_the_wrong_kind_environment_or_operators(tmp_path) -> None
         load_metacontroller(tmp_path / "x.npz", toy_gnn.operators(), toy.PREDICATES, toy.TYPES)
     header = json.loads(str(np.load(tmp_path / "m.npz")["meta.json"]))
     assert header["kind"] == "gnn-meta" and zipfile.is_zipfile(tmp_path / "m.npz")
+
+
+def test_learn_baselines_reuses_demos_and_operators_and_saves_into_a_skills_dir(tmp_path) -> None:
+    from bpns.learning.baselines import BaselinesConfig, learn_baselines, save_baselines
+    from bpns.learning.config import LearningConfig
+    from bpns.learning.pipeline import LearnedSkills
+
+    demos = toy_gnn.demos(10, seed=11)
+    skills = LearnedSkills(tuple(toy_gnn.oracle_skills()), toy.PREDICATES, LearningConfig())
+    config = BaselinesConfig(
+        meta=GNNConfig(max_steps=5),
+        bc=GNNConfig(max_steps=5, max_examples=50, seed=3),
+        nosubgoal=False,
+    )
+    learned = learn_baselines(
+        demos, toy.PREDICATES, toy.TYPES, toy.CONTACT_PREDICATES, skills, config
+    )
+    assert learned.meta_stats.num_examples == 20 and learned.meta_skipped_segments == 0
+    assert learned.bc_stats.num_used == 50
+    assert learned.bc_stats.num_examples == sum(len(d.actions) for d in demos)
+    written = save_baselines(learned, tmp_path)
+    assert sorted(p.name for p in written) == ["gnn_bc.npz", "gnn_meta.npz"]
+    load_metacontroller(tmp_path / "gnn_meta.npz", skills.operators, toy.PREDICATES, toy.TYPES)
+    load_bc_policy(tmp_path / "gnn_bc.npz", toy.PREDICATES, toy.TYPES)
