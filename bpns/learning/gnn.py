@@ -574,11 +574,8 @@ def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
     return offsets + np.arange(total)
 
 
-def torch_reference(
-    params: GNNParams, vocab: GraphVocabulary, batch: GraphBatch
-) -> tuple[np.ndarray, np.ndarray]:
-    """The same forward pass computed by torch in float64 from ``params`` (the check of
-    the numpy inference path); global outputs de-standardised."""
+def torch_module(params: GNNParams, vocab: GraphVocabulary) -> torch.nn.ModuleDict:
+    """A float64 torch module holding ``params`` (for :func:`torch_forward`)."""
     import torch
 
     hidden = tuple(w.shape[1] for w, _ in params.mlps["enc_node"][:-1])
@@ -591,7 +588,17 @@ def torch_reference(
             for lin, (w, b) in zip(linear, layers, strict=True):
                 lin.weight.copy_(torch.from_numpy(w.T))
                 lin.bias.copy_(torch.from_numpy(b))
-        L = lambda a: torch.as_tensor(a, dtype=torch.long)  # noqa: E731
+    return net
+
+
+def torch_forward(
+    net: torch.nn.ModuleDict, params: GNNParams, vocab: GraphVocabulary, batch: GraphBatch
+) -> tuple[np.ndarray, np.ndarray]:
+    """The forward pass of :class:`NumpyGNN` computed by torch (no autograd)."""
+    import torch
+
+    L = lambda a: torch.as_tensor(a, dtype=torch.long)  # noqa: E731
+    with torch.no_grad():
         tb = _TorchBatch(
             torch.from_numpy(standardise_nodes(params, vocab, batch)),
             torch.from_numpy(batch.edges.astype(np.float64)),
@@ -605,3 +612,11 @@ def torch_reference(
         node_out, glob = _torch_forward(net, tb, params.message_steps)
     nodes = node_out.numpy() if node_out is not None else np.zeros((len(batch.nodes), 0))
     return nodes, glob.numpy() * params.out_std + params.out_mean
+
+
+def torch_reference(
+    params: GNNParams, vocab: GraphVocabulary, batch: GraphBatch
+) -> tuple[np.ndarray, np.ndarray]:
+    """The same forward pass computed by torch in float64 from ``params`` (the check of
+    the numpy inference path); global outputs de-standardised."""
+    return torch_forward(torch_module(params, vocab), params, vocab, batch)
