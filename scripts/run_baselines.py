@@ -41,6 +41,12 @@ def main() -> int:
     parser.add_argument("--bc-max-steps", type=int, default=None)
     parser.add_argument("--bc-max-examples", type=int, default=None)
     parser.add_argument("--train-dist", action="store_true")
+    parser.add_argument(
+        "--nosubgoal",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="learn No-Subgoal skills too (default: yes)",
+    )
     parser.add_argument("--skip", nargs="*", default=(), help="approaches not to run")
     args = parser.parse_args()
 
@@ -83,7 +89,7 @@ def main() -> int:
             bc = dataclasses.replace(bc, max_steps=args.bc_max_steps)
         if args.bc_max_examples is not None:
             bc = dataclasses.replace(bc, max_examples=args.bc_max_examples)
-        config = dataclasses.replace(config, bc=bc)
+        config = dataclasses.replace(config, bc=bc, nosubgoal=args.nosubgoal)
         print(f"{len(demos)} demos loaded in {load_s:.1f} s; peak RSS {_peak_mb():.0f} MB")
         t0 = time.perf_counter()
         learned = learn_baselines(
