@@ -147,3 +147,20 @@ def test_policy_loop_runs_until_the_goal_or_the_horizon() -> None:
         toy.PREDICATES,
     )
     assert nan.reason == R.POLICY_NONFINITE and len(nan.actions) == 0
+
+
+def test_running_out_of_task_steps_is_reported_as_the_task_horizon() -> None:
+    env = toy_gnn.ToyCoverEnv()
+    task = _tasks(1, seed=5)[0]
+    short = type(task)(task.init, task.goal, horizon=3)  # too few steps to reach anything
+    out = solve_with_metacontroller(
+        env,
+        short,
+        np.random.default_rng(0),
+        None,
+        GoalChooser(),
+        toy_gnn.oracle_skills(),
+        toy.PREDICATES,
+        MetaSolveConfig(max_samples=4),
+    )
+    assert out.reason == R.TASK_HORIZON and out.stats["samples"] == 4

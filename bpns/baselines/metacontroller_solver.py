@@ -87,6 +87,7 @@ def solve_with_metacontroller(
         must_not_hold = tuple(ground.delete_effects - expected)
         tries = 1 if isinstance(skill.sampler, CurrentStateSampler) else config.max_samples
         run = None
+        step_failures: Counter = Counter()
         for _ in range(tries):
             counts["samples"] += 1
             try:
@@ -113,10 +114,16 @@ def solve_with_metacontroller(
             if run.success:
                 break
             failures[run.reason] += 1
+            step_failures[run.reason] += 1
             if run.reason == R.TIMEOUT:
                 break
         if run is None or not run.success:
-            reason = R.TIMEOUT if failures[R.TIMEOUT] else R.SUBGOALS_EXHAUSTED
+            if step_failures[R.TIMEOUT]:
+                reason = R.TIMEOUT
+            elif step_failures[R.TASK_HORIZON] == sum(step_failures.values()):
+                reason = R.TASK_HORIZON  # every sample ran out of the task's steps
+            else:
+                reason = R.SUBGOALS_EXHAUSTED
             break
         counts["skills"] += 1
         actions.extend(run.actions)
