@@ -12,6 +12,8 @@ import pytest
 
 from bpns.abstraction import abstract
 from bpns.learning.artifacts import ArtifactError
+from bpns.learning.baselines import BaselinesConfig, learn_baselines, save_baselines
+from bpns.learning.config import LearningConfig
 from bpns.learning.gnn import GNNConfig, torch_reference
 from bpns.learning.gnn_artifacts import (
     load_bc_policy,
@@ -27,6 +29,7 @@ from bpns.learning.gnn_meta import (
     train_metacontroller,
 )
 from bpns.learning.graphs import GraphVocabulary, batch_graphs, encode_graph
+from bpns.learning.pipeline import LearnedSkills
 from tests import toy_gnn
 from tests import toy_learning as toy
 
@@ -204,10 +207,6 @@ def test_models_refuse_the_wrong_kind_environment_or_operators(tmp_path) -> None
 
 
 def test_learn_baselines_reuses_demos_and_operators_and_saves_into_a_skills_dir(tmp_path) -> None:
-    from bpns.learning.baselines import BaselinesConfig, learn_baselines, save_baselines
-    from bpns.learning.config import LearningConfig
-    from bpns.learning.pipeline import LearnedSkills
-
     demos = toy_gnn.demos(10, seed=11)
     skills = LearnedSkills(tuple(toy_gnn.oracle_skills()), toy.PREDICATES, LearningConfig())
     config = BaselinesConfig(

@@ -14,8 +14,9 @@ import numpy as np
 from bpns.abstraction import abstract
 from bpns.learning.operators import learn_operators
 from bpns.learning.partition import partition_segments
+from bpns.learning.samplers import CurrentStateSampler
 from bpns.learning.segmentation import segment_demonstrations
-from bpns.structs import Demonstration, GroundAtom, State, STRIPSOperator, Task
+from bpns.structs import Demonstration, GroundAtom, Skill, State, STRIPSOperator, Task
 from tests import toy_learning as toy
 
 
@@ -109,9 +110,6 @@ def oracle_skills(seed: int = 0, subgoals: bool = True):
     """Hand-written skills for the learned Pick (Op0) and Place (Op1) operators; without
     subgoals the sampler is BPNS's CurrentStateSampler (and the policies, which read
     the subgoal, are given one that already sits at the goal)."""
-    from bpns.learning.samplers import CurrentStateSampler
-    from bpns.structs import Skill
-
     pick, place = operators(seed)
     if subgoals:
         return [
