@@ -42,6 +42,12 @@ def main() -> int:
     parser.add_argument("--bc-max-examples", type=int, default=None)
     parser.add_argument("--train-dist", action="store_true")
     parser.add_argument(
+        "--bc",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="learn and run GNN BC (default: yes)",
+    )
+    parser.add_argument(
         "--nosubgoal",
         action=argparse.BooleanOptionalAction,
         default=True,
@@ -89,7 +95,7 @@ def main() -> int:
             bc = dataclasses.replace(bc, max_steps=args.bc_max_steps)
         if args.bc_max_examples is not None:
             bc = dataclasses.replace(bc, max_examples=args.bc_max_examples)
-        config = dataclasses.replace(config, bc=bc, nosubgoal=args.nosubgoal)
+        config = dataclasses.replace(config, bc=bc if args.bc else None, nosubgoal=args.nosubgoal)
         print(f"{len(demos)} demos loaded in {load_s:.1f} s; peak RSS {_peak_mb():.0f} MB")
         t0 = time.perf_counter()
         learned = learn_baselines(
@@ -105,19 +111,24 @@ def main() -> int:
         print(f"  peak RSS of this process so far: {_peak_mb():.0f} MB")
     else:
         for name, kind in ((META_FILE, "gnn-meta"), (BC_FILE, "gnn-bc")):
-            print(name, saved_info(args.skills / name, kind).get("stats"))
+            if (args.skills / name).is_file():
+                print(name, saved_info(args.skills / name, kind).get("stats"))
 
     meta = load_metacontroller(args.skills / META_FILE, skills.operators, env.predicates, env.types)
-    bc_policy = load_bc_policy(args.skills / BC_FILE, env.predicates, env.types)
+    bc_policy = (
+        load_bc_policy(args.skills / BC_FILE, env.predicates, env.types) if args.bc else None
+    )
     nosub_dir = args.skills / NOSUBGOAL_DIR
     nosub = load_skills(nosub_dir, env.predicates, env.types) if nosub_dir.is_dir() else None
 
     from bpns.abstraction import abstract
 
     # GNN BC's per-control-step cost: numpy call vs the same forward in torch
+    if bc_policy is None:
+        args.skip = [*args.skip, "gnn-bc"]
     task0 = env.task(0, args.seed, False)
     atoms0 = abstract(task0.init, env.predicates)
-    graph = encode_graph(bc_policy.vocab, task0.init, atoms0, task0.goal)
+    graph = encode_graph(meta.vocab, task0.init, atoms0, task0.goal)
     batch = batch_graphs([graph])
 
     def timed(fn, n=200):
@@ -128,13 +139,19 @@ def main() -> int:
             times.append(time.perf_counter() - t0)
         return statistics.median(times)
 
-    t_np = timed(lambda: bc_policy(task0.init, atoms0, task0.goal))
-    t_net = timed(lambda: bc_policy._net(batch))
-    net = torch_module(bc_policy.params, bc_policy.vocab)
-    t_torch = timed(lambda: torch_forward(net, bc_policy.params, bc_policy.vocab, batch))
+    timed_model = bc_policy if bc_policy is not None else meta
+    label = "GNN BC" if bc_policy is not None else "GNN Meta"
+    t_np = timed(
+        lambda: timed_model._net(
+            batch_graphs([encode_graph(meta.vocab, task0.init, atoms0, task0.goal)])
+        )
+    )
+    t_net = timed(lambda: timed_model._net(batch))
+    net = torch_module(timed_model.params, timed_model.vocab)
+    t_torch = timed(lambda: torch_forward(net, timed_model.params, timed_model.vocab, batch))
     t_abs = timed(lambda: abstract(task0.init, env.predicates), 50)
     print(
-        f"GNN BC one call ({len(graph.objects)} nodes, {len(graph.edges)} edges): "
+        f"{label} one call ({len(graph.objects)} nodes, {len(graph.edges)} edges): "
         f"numpy incl. encoding {t_np * 1e6:.0f} us, network only {t_net * 1e6:.0f} us; "
         f"torch float64 forward (module built once, no autograd) {t_torch * 1e6:.0f} us "
         f"= {t_torch / t_net:.1f}x the numpy network; abstraction {t_abs * 1e6:.0f} us"
