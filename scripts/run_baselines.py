@@ -58,6 +58,7 @@ def main() -> int:
 
     import dataclasses
 
+    from bpns.abstraction import abstract
     from bpns.baselines import solve_with_metacontroller, solve_with_policy
     from bpns.datasets import load_demonstrations
     from bpns.evaluation import plan_reaches_goal
@@ -121,9 +122,7 @@ def main() -> int:
     nosub_dir = args.skills / NOSUBGOAL_DIR
     nosub = load_skills(nosub_dir, env.predicates, env.types) if nosub_dir.is_dir() else None
 
-    from bpns.abstraction import abstract
-
-    # GNN BC's per-control-step cost: numpy call vs the same forward in torch
+    # per-call inference cost (GNN BC's, every control step): numpy vs the same forward in torch
     if bc_policy is None:
         args.skip = [*args.skip, "gnn-bc"]
     task0 = env.task(0, args.seed, False)
