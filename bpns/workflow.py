@@ -139,16 +139,23 @@ class LearnedRun:
     num_demos: int
     load_seconds: float
     out: Path
+    baseline_seconds: tuple[tuple[str, float], ...] | None = None  # per baseline learned
 
     def lines(self) -> list[str]:
         stats = self.learned.stats
         assert stats is not None
-        return [
+        out = [
             f"learned {len(self.learned.skills)} skills from {self.num_demos} demonstrations "
             f"of {self.env_name} in {stats.total_seconds:.1f} s (+{self.load_seconds:.1f} s "
             f"loading) -> {self.out}",
             f"  {stats}",
         ]
+        if self.baseline_seconds is not None:
+            out.append(
+                "  baselines: "
+                + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in self.baseline_seconds)
+            )
+        return out
 
 
 def learn_to_directory(
@@ -160,11 +167,15 @@ def learn_to_directory(
     threads: int = 1,
     progress: Progress = _no_progress,
     report: Callable[[str], None] | None = None,
+    baselines: bool = False,
+    baseline_steps: int | None = None,
 ) -> LearnedRun:
     """Learn skills from the first ``limit`` (default: all) demonstrations of
-    ``demos_path`` and save them to ``out`` (replacing it). Raises
-    ``bpns.datasets.DatasetError`` for a bad file and :class:`CannotLearnError` when the
-    demos cannot be learned from."""
+    ``demos_path`` and save them to ``out`` (replacing it); with ``baselines`` also the
+    paper's baselines from the same demonstrations, saved beside them
+    (:mod:`bpns.learning.baselines`; ``baseline_steps`` caps each GNN's gradient steps).
+    Raises ``bpns.datasets.DatasetError`` for a bad
+    file and :class:`CannotLearnError` when the demos cannot be learned from."""
     from bpns.datasets import count_demonstrations, iter_demonstrations
     from bpns.learning import learn_skills, save_skills
     from bpns.learning.given import given_skills_of
@@ -184,4 +195,20 @@ def learn_to_directory(
     except ValueError as err:
         raise CannotLearnError(f"cannot learn from {demos_path}: {err}") from None
     save_skills(learned, out, overwrite=True, env_name=env.name)
-    return LearnedRun(learned, env.name, n, load_seconds, out)
+    baseline_seconds = None
+    if baselines:
+        from bpns.learning.baselines import BaselinesConfig, learn_baselines, save_baselines
+
+        extra = learn_baselines(
+            demos,
+            env.predicates,
+            env.types,
+            env.contact_predicates,
+            learned,
+            None if baseline_steps is None else BaselinesConfig.with_max_steps(baseline_steps),
+            report=report,
+            given=given_skills_of(env),
+        )
+        save_baselines(extra, out, env.name)  # after the skills: saving them replaces `out`
+        baseline_seconds = tuple(extra.stage_seconds)
+    return LearnedRun(learned, env.name, n, load_seconds, out, baseline_seconds)

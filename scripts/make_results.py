@@ -224,6 +224,7 @@ def bpns(*argv: str) -> str:
 
 
 def learning_results(args, name: str) -> list[str]:
+    from bpns.approaches import get_approach
     from bpns.evaluation import TABLE_HEADER
 
     work = args.work
@@ -243,6 +244,8 @@ def learning_results(args, name: str) -> list[str]:
     for i, n in enumerate(args.learn):
         skills = work / f"skills_{n}"
         learn = ["learn", str(demos), "--limit", str(n), "--out", str(skills), "--overwrite"]
+        if any(get_approach(a).needs_baselines for a in args.approach):
+            learn.append("--baselines")
         learned = bpns(*learn, "--seed", str(args.seed)).strip().splitlines()
         learn_lines.append(f"- {n} demos: {learned[0].split(' -> ')[0]}")
         approaches = ["bpns"] + (["samples1", "abstract1"] if args.ablations else [])

@@ -102,6 +102,8 @@ class ApproachEntry:
     skills: SkillSource
     build: Builder
     adjust: Callable[[PlanningConfig], PlanningConfig] = _same
+    # learned by `bpns learn --baselines` beside the skills (bpns.learning.baselines)
+    needs_baselines: bool = False
 
     def planning_config(self, base: PlanningConfig) -> PlanningConfig:
         return self.adjust(base)

@@ -21,6 +21,7 @@ from bpns.abstraction import abstract
 from bpns.approaches.base import Approach, Solution, failure
 from bpns.environment import Environment
 from bpns.execution import (
+    Executed,
     ExecutionTimeout,
     RolloutConfig,
     SkillExecutor,
@@ -44,12 +45,21 @@ class SkillChoice:
 
 class Metacontroller(Approach):
     """Choose-and-execute loop until the goal holds; at most ``config.max_plan_length``
-    skills, each limited like a refinement step (``config``'s rollout fields)."""
+    skills, each limited like a refinement step (``config``'s rollout fields), each
+    tried with up to ``max_samples`` drawn subgoals (no backtracking to earlier ones)."""
 
-    def __init__(self, env: Environment, config: PlanningConfig) -> None:
+    def __init__(self, env: Environment, config: PlanningConfig, max_samples: int = 1) -> None:
+        if max_samples < 1:
+            raise ValueError(f"max_samples must be >= 1, got {max_samples}")
         self.env = env
         self.config = config
+        self.max_samples = max_samples
         self.action_dim = np.asarray(env.action_low).size
+
+    def samples_for(self, choice: SkillChoice) -> int:
+        """How many subgoals to draw for ``choice`` until one's rollout reaches the
+        operator's predicted abstract state (the attempt fails when none does)."""
+        return self.max_samples
 
     @abc.abstractmethod
     def choose(
@@ -85,19 +95,27 @@ class Metacontroller(Approach):
                 if choice is None:
                     return failed(FailureReason.NO_SKILL)
                 op = choice.skill.operator.ground(choice.objects)
-                subgoal = choice.subgoal
-                if subgoal is None:
-                    samples += 1
-                    try:
-                        subgoal = np.asarray(
-                            choice.skill.sampler(state, op.objects, rng), dtype=np.float64
-                        )
-                    except Exception:
-                        return failed(FailureReason.SAMPLER_ERROR)
-                    if not np.isfinite(subgoal).all():
-                        return failed(FailureReason.SAMPLER_NONFINITE)
                 test = completion_test(op, expected_after(op, atoms))
-                out = executor.execute(choice.skill, op.objects, subgoal, state, test, len(actions))
+                out: Executed | FailureReason = FailureReason.EXHAUSTED
+                for _ in range(1 if choice.subgoal is not None else self.samples_for(choice)):
+                    subgoal = choice.subgoal
+                    if subgoal is None:
+                        samples += 1
+                        try:
+                            subgoal = np.asarray(
+                                choice.skill.sampler(state, op.objects, rng), dtype=np.float64
+                            )
+                        except Exception:
+                            out = FailureReason.SAMPLER_ERROR
+                            continue
+                        if not np.isfinite(subgoal).all():
+                            out = FailureReason.SAMPLER_NONFINITE
+                            continue
+                    out = executor.execute(
+                        choice.skill, op.objects, subgoal, state, test, len(actions)
+                    )
+                    if not isinstance(out, FailureReason):
+                        break
                 if isinstance(out, FailureReason):
                     return failed(out)
                 history.append(choice)

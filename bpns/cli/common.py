@@ -175,7 +175,19 @@ def evaluate_approaches(
     from bpns.evaluation import EvalSpec, evaluate
     from bpns.reporting import solved_line
 
+    from bpns.learning.artifacts import ArtifactError
+
     stats = learned.stats if learned is not None else None
+    for name in names:  # every approach can be built (its files load) before any work
+        entry = get_approach(name)
+        try:
+            entry.make(
+                env,
+                entry.planning_config(base_planning),
+                skills_dir if entry.skills is SkillSource.LEARNED else None,
+            )
+        except (NoOracleSkillsError, ArtifactError, ValueError) as err:
+            raise UserError(f"approach {name}: {err}") from None
     reports = []
     for name in names:
         approach = get_approach(name)

@@ -67,6 +67,18 @@ def configure(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="name operators Op0, Op1, ... as in the paper instead of after their effects",
     )
+    p.add_argument(
+        "--baselines",
+        action="store_true",
+        help="also learn the paper's baselines from the same demos (No-Subgoal skills, GNN "
+        "metacontroller, GNN BC) into --out, for `bpns eval --approach nosubgoal gnn-meta "
+        "gnn-meta-nosubgoal gnn-bc`",
+    )
+    p.add_argument(
+        "--baseline-steps",
+        type=positive,
+        help="with --baselines: at most this many gradient steps per GNN (default 20000)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     p.add_argument(
         "--threads",
@@ -111,7 +123,16 @@ def run(args: argparse.Namespace) -> int:
         )
     try:
         learned = learn_to_directory(
-            env, args.demos, args.out, config, args.limit, threads, progress, stage_reporter()
+            env,
+            args.demos,
+            args.out,
+            config,
+            args.limit,
+            threads,
+            progress,
+            stage_reporter(),
+            baselines=args.baselines,
+            baseline_steps=args.baseline_steps,
         )
     except (DatasetError, CannotLearnError) as err:
         raise UserError(str(err)) from None

@@ -22,6 +22,11 @@ def uses_learned_skills(name: str) -> bool:
     return get_approach(name).skills is SkillSource.LEARNED
 
 
+def needs_baselines(name: str) -> bool:
+    """Learned beside the skills by ``bpns learn --baselines`` (the paper's baselines)."""
+    return get_approach(name).needs_baselines
+
+
 def uses_environment_skills(name: str) -> bool:
     """Plans with the environment's hand-written skills (needs ``env.oracle_skills``)."""
     return get_approach(name).skills is SkillSource.ORACLE

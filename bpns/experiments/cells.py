@@ -38,6 +38,7 @@ class Cell:
     approach: str | None = None
     deps: tuple[str, ...] = ()  # keys of the cells whose results this one reads
     learning: LearningConfig | None = None  # skills cells
+    baselines: bool = False  # skills cells: also learn the paper's baselines beside them
     planning: PlanningConfig | None = None  # eval cells
     eval_tasks: int | None = None  # eval cells
 
@@ -60,6 +61,8 @@ class Cell:
         elif self.kind == SKILLS:
             s["demo_count"] = self.count
             s["learning"] = dataclasses.asdict(self.learning)  # type: ignore[arg-type]
+            if self.baselines:  # (absent when False: cells stored before keep matching)
+                s["baselines"] = True
         else:
             s.update(
                 approach=self.approach,
@@ -111,6 +114,7 @@ def plan_cells(config: SweepConfig, envs: Mapping[str, Environment]) -> list[Cel
                     count,
                     deps=(demo_cell.key,),
                     learning=learning_config_for(env, seed=seed),
+                    baselines=any(approach_info.needs_baselines(a) for a in config.approaches),
                 )
                 if any(approach_info.uses_learned_skills(a) for a in config.approaches):
                     skills.append(skill_cell)

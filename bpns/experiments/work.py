@@ -101,8 +101,23 @@ def _learn(job: CellJob) -> dict[str, Any]:
         given=given_skills_of(env),
     )
     save_skills(learned, job.output, overwrite=True, env_name=env.name)
+    baseline_seconds: dict[str, float] = {}
+    if job.cell.baselines:
+        from bpns.learning.baselines import learn_baselines, save_baselines
+
+        extra = learn_baselines(
+            demos,
+            env.predicates,
+            env.types,
+            env.contact_predicates,
+            learned,
+            given=given_skills_of(env),
+        )
+        save_baselines(extra, job.output, env.name)  # after the skills (saving replaces)
+        baseline_seconds = dict(extra.stage_seconds)
     assert learned.stats is not None
     return {
+        "baseline_seconds": baseline_seconds,
         "num_demos": job.num_demos,
         "num_skills": len(learned.skills),
         "skills": [s.name for s in learned.skills],
