@@ -50,7 +50,9 @@ def test_a_baseline_without_its_model_is_one_clear_error(tmp_path, capsys, skill
     copy = tmp_path / "skills"
     shutil.copytree(skills_with_baselines, copy)
     (copy / "gnn_bc.npz").unlink()
-    code = main(["eval", "--skills", str(copy), "--approach", "gnn-bc", "-n", "1", "--workers", "1"])
+    code = main(
+        ["eval", "--skills", str(copy), "--approach", "gnn-bc", "-n", "1", "--workers", "1"]
+    )
     assert code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--baselines" in err[0]

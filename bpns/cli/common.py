@@ -173,9 +173,8 @@ def evaluate_approaches(
     the reports in the order named (the middle of ``bpns eval`` and of ``bpns run``)."""
     from bpns.approaches import NoOracleSkillsError, SkillSource, get_approach
     from bpns.evaluation import EvalSpec, evaluate
-    from bpns.reporting import solved_line
-
     from bpns.learning.artifacts import ArtifactError
+    from bpns.reporting import solved_line
 
     stats = learned.stats if learned is not None else None
     for name in names:  # every approach can be built (its files load) before any work
