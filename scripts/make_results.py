@@ -62,6 +62,7 @@ def replay_check(env_name: str, n: int, seed: int, workers: int) -> dict:
 
 
 SECTIONS = ROOT / "docs" / "results"
+EXPERIMENTS = ROOT / "docs" / "experiments"
 ORDER = ("cover", "stick_button", "coffee", "doors")  # the paper's order; others follow
 
 
@@ -180,7 +181,25 @@ def assemble(out: Path) -> None:
         "",
     ]
     body = [found[n].read_text().rstrip() + "\n" for n in names]
-    atomic_write(out, "\n".join(preface) + "\n" + "\n".join(body))
+    atomic_write(out, "\n".join(preface) + "\n" + "\n".join(body + experiment_sections()))
+
+
+def experiment_sections() -> list[str]:
+    """Every sweep report kept in docs/experiments/<name>/ (``bpns experiment`` writes
+    ``results.md`` and figures into its --out; copy them there), one section each, with
+    headings one level down and figure paths relative to docs/."""
+    out = []
+    for report in sorted(EXPERIMENTS.glob("*/results.md")):
+        lines = []
+        for line in report.read_text().rstrip().splitlines():
+            if line.startswith("#"):
+                line = "#" + line
+            line = line.replace("](", f"](experiments/{report.parent.name}/")
+            lines.append(line)
+        out.append("\n".join(lines) + "\n")
+    if out:
+        out.insert(0, "## Means and spread over seeds (`bpns experiment`)\n")
+    return out
 
 
 def control_bench() -> list[str]:
