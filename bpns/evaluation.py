@@ -61,6 +61,7 @@ class TaskOutcome:
     sim_steps: int
     validated: bool | None  # None when validation was off or the task unsolved
     skeleton: tuple[str, ...] = ()  # the abstract plan refined, one ground skill a step
+    explanation: dict | None = None  # a failed task: what was tried and why it failed
     actions: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
 
     def to_json(self) -> dict[str, Any]:
@@ -206,6 +207,7 @@ def solve_task(
         sim_steps=result.sim_steps,
         validated=validated,
         skeleton=result.skeleton if result.success else (),
+        explanation=None if result.success else result.explanation,
         actions=result.actions,
     )
 

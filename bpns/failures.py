@@ -32,3 +32,21 @@ class FailureReason(str, enum.Enum):
 
     def __format__(self, spec: str) -> str:
         return format(self.value, spec)
+
+
+MEANING: dict[FailureReason, str] = {
+    FailureReason.TIMEOUT: "the wall-clock budget ran out",
+    FailureReason.NO_ABSTRACT_PLAN: "the abstract search found no plan at all",
+    FailureReason.REFINEMENT_FAILED: "every abstract plan tried failed to refine",
+    FailureReason.EXHAUSTED: "every sample of the plan's first step failed",
+    FailureReason.NO_SKILL: "no ground skill was left to execute",
+    FailureReason.SAMPLER_ERROR: "the subgoal sampler raised",
+    FailureReason.SAMPLER_NONFINITE: "the subgoal sampler returned NaN/inf",
+    FailureReason.POLICY_ERROR: "the policy raised or returned the wrong shape",
+    FailureReason.POLICY_NONFINITE: "the policy returned NaN/inf",
+    FailureReason.SKILL_HORIZON: "the step's atoms did not hold within the skill's horizon",
+    FailureReason.STUCK: "the world stopped changing before the step's atoms held",
+    FailureReason.CONTACT_CHANGED: "a contact atom the step should not touch changed",
+    FailureReason.TASK_HORIZON: "the task's step budget would be exceeded",
+    FailureReason.NOGOOD: "refuted from memory: the same state already failed here",
+}

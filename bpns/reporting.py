@@ -10,6 +10,7 @@ from pathlib import Path
 
 from bpns.environment import Environment
 from bpns.evaluation import EvalReport, TaskOutcome, save_plans
+from bpns.failures import MEANING
 
 
 def solved_line(report: EvalReport) -> str:
@@ -49,6 +50,56 @@ class SolvedVideo:
             f"{o.index} in {len(o.actions)} steps) and {self.png}",
             "  plan: " + ", ".join(o.skeleton),
         ]
+
+
+def explain_lines(report: EvalReport) -> list[str]:
+    """Why each failed task failed, readably (``bpns eval --explain``): the abstract plans
+    tried and, per step, how many samples succeeded and how many failed and why."""
+    lines = []
+    seen: set[str] = set()
+    for o in report.outcomes:
+        if o.solved:
+            continue
+        e = o.explanation or {}
+        seen.update(e.get("failures", {}), [str(o.reason)])
+        lines.append(
+            f"{report.label}, task {o.index}: {o.reason} after {o.seconds:.1f} s "
+            f"({o.samples} samples, {o.sim_steps} simulated steps)"
+        )
+        if e.get("failures"):
+            failures = ", ".join(f"{r} {n}" for r, n in sorted(e["failures"].items()))
+            lines.append(f"  failed samples by reason: {failures}")
+        if "abstract_plans" in e:
+            shown = len(e.get("skeletons", ()))
+            more = e["abstract_plans"] - shown
+            lines.append(
+                f"  {e['abstract_plans']} abstract plans tried"
+                + (f" (the first {shown} below)" if more > 0 else "")
+                + (": the abstract search found none" if e["abstract_plans"] == 0 else "")
+            )
+        for k, sk in enumerate(e.get("skeletons", ())):
+            lines.append(f"  plan {k + 1} ({sk['reason'] or 'refined'}):")
+            steps = sk["steps"]
+            active = [i for i, st in enumerate(steps) if st["successes"] or st["failures"]]
+            last = active[-1] if active else -1
+            for step in steps[: last + 1]:
+                failed = ", ".join(f"{r} {n}" for r, n in sorted(step["failures"].items()))
+                if not step["successes"] and not failed:
+                    lines.append(f"    {step['step']}: refined by an earlier plan (reused)")
+                    continue
+                lines.append(
+                    f"    {step['step']}: {step['successes']} samples reached it"
+                    + (f"; failed: {failed}" if failed else "")
+                )
+            if len(steps) > last + 1:
+                lines.append(f"    ({len(steps) - last - 1} later steps not reached)")
+        if "executed" in e:
+            lines.append(f"  executed: {', '.join(e['executed']) or '(nothing)'}")
+            if e.get("failed_step"):
+                lines.append(f"  failed at: {e['failed_step']}")
+    known = {str(r): text for r, text in MEANING.items()}
+    glossary = [f"  {r}: {known[r]}" for r in sorted(seen) if r in known]
+    return lines + (["reasons:", *glossary] if glossary else [])
 
 
 def longest_solved(report: EvalReport) -> TaskOutcome | None:

@@ -122,3 +122,32 @@ def test_environments_declare_learning_defaults_that_cli_settings_override():
     assert learning_config_for(sb).settle_steps == sb.contact_settle_steps
     assert learning_config_for(sb, near_goal_scale=0.5, seed=None).near_goal_scale == 0.5
     assert learning_config_for(make_env("coffee")).near_goal_scale is None
+
+
+def test_failed_tasks_are_explained_step_by_step(cover_env):
+    """A failed task's outcome says which abstract plans were tried and, per step, how many
+    samples failed and why (results.json `explanation`; `bpns eval --explain` prints it)."""
+    import dataclasses
+    import json
+
+    from bpns.approaches.bilevel import BilevelPlanning
+    from bpns.evaluation import EvalReport, solve_task
+    from bpns.planning.config import PlanningConfig
+    from bpns.reporting import explain_lines
+
+    pick, place = cover_env.oracle_skills()
+    # a pick that aims 30 cm above the block: the grasp never happens
+    far = dataclasses.replace(pick, sampler=lambda s, o, r: pick.sampler(s, o, r) + 0.3)
+    config = PlanningConfig(n_abstract=2, n_samples=2, timeout=60.0, max_skill_horizon=40)
+    approach = BilevelPlanning(cover_env, [far, place], config)
+    task = cover_env.task(0, 7, False)
+    outcome = solve_task(approach, task, 0, cover_env, 60.0, np.random.default_rng(0))
+    assert not outcome.solved and outcome.reason == "refinement_failed"
+    e = json.loads(json.dumps(outcome.to_json()))["explanation"]
+    assert e["abstract_plans"] == len(e["skeletons"]) >= 1
+    first = e["skeletons"][0]["steps"][0]
+    assert first["successes"] == 0 and sum(first["failures"].values()) == 2
+    report = EvalReport("cover", "bpns", "BPNS", config, (outcome,), 7)
+    text = "\n".join(explain_lines(report))
+    assert "BPNS, task 0: refinement_failed" in text and "plan 1 (exhausted)" in text
+    assert "reasons:" in text

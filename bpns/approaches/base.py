@@ -54,6 +54,9 @@ class Solution:
     samples: int = 0
     sim_steps: int = 0
     details: object = field(default=None, repr=False)  # e.g. the planner's PlanResult
+    # why a failed attempt failed, JSON-ready (abstract plans tried and, per step,
+    # samples that failed and why): written to results.json, shown by `bpns eval --explain`
+    explanation: dict | None = field(default=None, repr=False)
 
 
 def failure(reason: FailureReason, action_dim: int, **counts: int) -> Solution:

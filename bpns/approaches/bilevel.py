@@ -19,7 +19,7 @@ from bpns.approaches.base import (
     with_timeout,
 )
 from bpns.environment import Environment
-from bpns.planning.bilevel import plan
+from bpns.planning.bilevel import PlanningStats, plan
 from bpns.planning.config import PlanningConfig
 from bpns.structs import Skill, Task
 
@@ -49,7 +49,17 @@ class BilevelPlanning(Approach):
             samples=s.samples_drawn,
             sim_steps=s.sim_steps,
             details=result,
+            explanation=None if result.success else _explanation(result.stats),
         )
+
+
+def _explanation(stats: PlanningStats) -> dict:
+    """Why planning failed: failures by reason, and the first skeletons step by step."""
+    return {
+        "abstract_plans": stats.abstract_plans_tried,
+        "failures": {str(r): n for r, n in stats.sample_failures},
+        "skeletons": [a.to_json() for a in stats.attempts],
+    }
 
 
 def oracle_skills(env: Environment) -> list[Skill]:

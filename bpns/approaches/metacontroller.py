@@ -11,6 +11,7 @@ holds; any failure of an execution ends the attempt with that failure's reason.
 from __future__ import annotations
 
 import abc
+import dataclasses
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -82,8 +83,10 @@ class Metacontroller(Approach):
         skeleton: list[str] = []
         samples = 0
 
-        def failed(reason: FailureReason) -> Solution:
-            return failure(reason, self.action_dim, samples=samples, sim_steps=executor.sim_steps)
+        def failed(reason: FailureReason, step: str | None = None) -> Solution:
+            out = failure(reason, self.action_dim, samples=samples, sim_steps=executor.sim_steps)
+            executed = {"executed": list(skeleton), "failed_step": step}
+            return dataclasses.replace(out, explanation=executed)
 
         try:
             while not task.goal_holds(atoms):
@@ -117,7 +120,7 @@ class Metacontroller(Approach):
                     if not isinstance(out, FailureReason):
                         break
                 if isinstance(out, FailureReason):
-                    return failed(out)
+                    return failed(out, str(op))
                 history.append(choice)
                 skeleton.append(str(op))
                 actions.extend(out.actions)

@@ -67,6 +67,12 @@ def configure(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--no-validate", action="store_true", help="skip re-simulating plans")
     p.add_argument(
+        "--explain",
+        action="store_true",
+        help="print why each failed task failed: the abstract plans tried and, per step, the "
+        "samples that failed and why (also in results.json, `explanation`)",
+    )
+    p.add_argument(
         "--overwrite", action="store_true", help="replace existing results and video files"
     )
 
@@ -120,4 +126,10 @@ def run(args: argparse.Namespace) -> int:
         workers,
     )
     report_evaluation(env, reports, args.out, args.video, args.seed, args.train)
+    if args.explain:
+        from bpns.reporting import explain_lines
+
+        for report in reports:
+            for line in explain_lines(report):
+                print(line)
     return 0 if all(r.num_solved for r in reports) else 1

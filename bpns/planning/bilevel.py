@@ -39,6 +39,34 @@ class PlanningStats:
     refinement_time: float = 0.0  # sampling + simulation (s)
     total_time: float = 0.0
     sample_failures: tuple[tuple[FailureReason, int], ...] = ()
+    # the first MAX_RECORDED_ATTEMPTS skeletons refined, step by step (for explanations)
+    attempts: tuple[SkeletonAttempt, ...] = ()
+
+
+MAX_RECORDED_ATTEMPTS = 20
+
+
+@dataclass(frozen=True)
+class SkeletonAttempt:
+    """One abstract plan's refinement: per step, successful samples and failures by
+    reason; ``reason`` is why the refinement failed (None: it succeeded)."""
+
+    steps: tuple[str, ...]
+    reason: FailureReason | None
+    step_successes: tuple[int, ...]
+    step_failures: tuple[tuple[tuple[FailureReason, int], ...], ...]
+
+    def to_json(self) -> dict:
+        return {
+            "plan": list(self.steps),
+            "reason": None if self.reason is None else str(self.reason),
+            "steps": [
+                {"step": step, "successes": ok, "failures": {str(r): n for r, n in failed}}
+                for step, ok, failed in zip(
+                    self.steps, self.step_successes, self.step_failures, strict=True
+                )
+            ],
+        }
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,7 +157,7 @@ def plan(
                 prefixes,
             )
             acc.refinement_time += time.monotonic() - t0
-            acc.add(ref.stats)
+            acc.add(ref.stats, skeleton, ref.reason)
             if ref.success:
                 return PlanResult(
                     success=True,
@@ -163,13 +191,17 @@ class _Accumulator:
         self.sim_steps = 0
         self.backtracks = 0
         self.failures: Counter = Counter()
+        self.attempts: list[SkeletonAttempt] = []
         self.search = SearchStats()  # updated in place by the skeleton generator
 
-    def add(self, s: RefinementStats) -> None:
+    def add(self, s: RefinementStats, skeleton: AbstractPlan, reason: FailureReason | None) -> None:
         self.samples += s.samples
         self.sim_steps += s.sim_steps
         self.backtracks += s.backtracks
         self.failures.update(dict(s.sample_failures))
+        if len(self.attempts) < MAX_RECORDED_ATTEMPTS:
+            steps = tuple(str(op) for op in skeleton.operators)
+            self.attempts.append(SkeletonAttempt(steps, reason, s.step_successes, s.step_failures))
 
     def freeze(self) -> PlanningStats:
         return PlanningStats(
@@ -184,6 +216,7 @@ class _Accumulator:
             refinement_time=self.refinement_time,
             total_time=time.monotonic() - self.start,
             sample_failures=tuple(sorted(self.failures.items())),
+            attempts=tuple(self.attempts),
         )
 
     def result(

@@ -42,6 +42,10 @@ class RefinementStats:
     sim_steps: int = 0
     backtracks: int = 0
     sample_failures: tuple[tuple[FailureReason, int], ...] = ()
+    # per step of the skeleton: successful samples and failed ones by reason (what
+    # `bpns eval --explain` shows of a failed task)
+    step_successes: tuple[int, ...] = ()
+    step_failures: tuple[tuple[tuple[FailureReason, int], ...], ...] = ()
 
     def failures(self, reason: str) -> int:
         return dict(self.sample_failures).get(reason, 0)
@@ -70,13 +74,29 @@ class RefinementResult:
 
 @dataclass
 class _Counters:
+    steps: int
     samples: int = 0
     backtracks: int = 0
     failures: Counter = field(default_factory=Counter)
+    step_successes: list[int] = field(default_factory=list)
+    step_failures: list[Counter] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.step_successes = [0] * self.steps
+        self.step_failures = [Counter() for _ in range(self.steps)]
+
+    def failed(self, step: int, reason: FailureReason) -> None:
+        self.failures[reason] += 1
+        self.step_failures[step][reason] += 1
 
     def freeze(self, sim_steps: int) -> RefinementStats:
         return RefinementStats(
-            self.samples, sim_steps, self.backtracks, tuple(sorted(self.failures.items()))
+            self.samples,
+            sim_steps,
+            self.backtracks,
+            tuple(sorted(self.failures.items())),
+            tuple(self.step_successes),
+            tuple(tuple(sorted(c.items())) for c in self.step_failures),
         )
 
 
@@ -163,7 +183,7 @@ def refine(
     tests = [
         completion_test(op, nxt) for op, nxt in zip(plan.operators, plan.atoms[1:], strict=True)
     ]
-    counters = _Counters()
+    counters = _Counters(len(plan.operators))
     executor = SkillExecutor(env, task, RolloutConfig.of(config), deadline)
     n = len(plan.operators)
     keys = [
@@ -196,7 +216,7 @@ def refine(
             elif tries[i] == 0 and memo is not None:  # a fresh arrival at step i
                 x = _flat(starts[i])
                 if memo.refuted(keys[i], x) or memo.refuted(tuple(keys[i:]), x):
-                    counters.failures[FailureReason.NOGOOD] += 1
+                    counters.failed(i, FailureReason.NOGOOD)
                     exhausted = True
             if exhausted:
                 if i > 0:  # a suffix refuted only for lack of time steps is not recorded
@@ -224,10 +244,11 @@ def refine(
                 refuted[i],
             )
             if isinstance(out, FailureReason):
-                counters.failures[out] += 1
+                counters.failed(i, out)
                 horizon_hit[i] |= out is FailureReason.TASK_HORIZON
                 continue
             successes[i] += 1
+            counters.step_successes[i] += 1
             if refuted[i] is not None:
                 refuted[i].append(out.subgoal)
             segments[i] = out
@@ -237,7 +258,7 @@ def refine(
             if prefixes is not None:
                 prefixes.add(keys[:i], segments[:i])
     except ExecutionTimeout:
-        counters.failures[FailureReason.TIMEOUT] += 1
+        counters.failed(min(i, n - 1), FailureReason.TIMEOUT)
         reason = FailureReason.TIMEOUT
     stats = counters.freeze(executor.sim_steps)
     if reason is not None:
