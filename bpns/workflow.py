@@ -197,18 +197,11 @@ def learn_to_directory(
     save_skills(learned, out, overwrite=True, env_name=env.name)
     baseline_seconds = None
     if baselines:
-        from bpns.learning.baselines import BaselinesConfig, learn_baselines, save_baselines
+        from bpns.learning.baselines import BaselinesConfig, learn_baselines_into
 
-        extra = learn_baselines(
-            demos,
-            env.predicates,
-            env.types,
-            env.contact_predicates,
-            learned,
-            None if baseline_steps is None else BaselinesConfig.with_max_steps(baseline_steps),
-            report=report,
-            given=given_skills_of(env),
+        config_b = (
+            None if baseline_steps is None else BaselinesConfig.with_max_steps(baseline_steps)
         )
-        save_baselines(extra, out, env.name)  # after the skills: saving them replaces `out`
-        baseline_seconds = tuple(extra.stage_seconds)
+        # after the skills: saving them replaces `out`
+        baseline_seconds = learn_baselines_into(out, env, demos, learned, config_b, report)
     return LearnedRun(learned, env.name, n, load_seconds, out, baseline_seconds)

@@ -103,18 +103,10 @@ def _learn(job: CellJob) -> dict[str, Any]:
     save_skills(learned, job.output, overwrite=True, env_name=env.name)
     baseline_seconds: dict[str, float] = {}
     if job.cell.baselines:
-        from bpns.learning.baselines import learn_baselines, save_baselines
+        from bpns.learning.baselines import learn_baselines_into
 
-        extra = learn_baselines(
-            demos,
-            env.predicates,
-            env.types,
-            env.contact_predicates,
-            learned,
-            given=given_skills_of(env),
-        )
-        save_baselines(extra, job.output, env.name)  # after the skills (saving replaces)
-        baseline_seconds = dict(extra.stage_seconds)
+        # after the skills: saving them replaces the directory
+        baseline_seconds = dict(learn_baselines_into(job.output, env, demos, learned))
     assert learned.stats is not None
     return {
         "baseline_seconds": baseline_seconds,

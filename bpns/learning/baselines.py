@@ -21,8 +21,9 @@ from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from bpns.environment import Environment
 from bpns.learning.artifacts import save_skills
-from bpns.learning.given import GivenSkill
+from bpns.learning.given import GivenSkill, given_skills_of
 from bpns.learning.gnn import GNNConfig, GNNTrainingStats
 from bpns.learning.gnn_artifacts import BC_FILE, META_FILE, save_bc_policy, save_metacontroller
 from bpns.learning.gnn_bc import GNNPolicy, bc_examples, train_bc_policy
@@ -175,3 +176,28 @@ def _stats_json(stats: GNNTrainingStats | None) -> dict | None:
 
 def _config_json(config: GNNConfig | None) -> dict | None:
     return None if config is None else dataclasses.asdict(config)
+
+
+def learn_baselines_into(
+    directory: str | os.PathLike,
+    env: Environment,
+    demos: Sequence[Demonstration],
+    skills: LearnedSkills,
+    config: BaselinesConfig | None = None,
+    report: Callable[[str], None] | None = None,
+) -> tuple[tuple[str, float], ...]:
+    """Learn ``env``'s baselines from ``demos`` (and the BPNS ``skills`` learned from
+    them) and save them into the skills ``directory`` already written; returns the
+    seconds each took."""
+    learned = learn_baselines(
+        demos,
+        env.predicates,
+        env.types,
+        env.contact_predicates,
+        skills,
+        config,
+        report=report,
+        given=given_skills_of(env),
+    )
+    save_baselines(learned, directory, env.name)
+    return learned.stage_seconds
