@@ -9,6 +9,7 @@ import numpy as np
 import torch
 
 from bpns.demos import run_demonstrator
+from bpns.learning.artifacts import load_skills, save_skills
 from bpns.learning.config import MLPConfig, learning_config_for
 from bpns.learning.given import BoundPolicy, given_skills_of
 from bpns.learning.pipeline import learn_skills
@@ -18,7 +19,7 @@ from bpns.planning.config import PlanningConfig
 from mj_envs.domains.doors.env import DoorsEnv
 
 
-def test_few_demos_learn_four_operators_using_the_given_skills_and_solve_a_task():
+def test_few_demos_learn_four_operators_using_the_given_skills_and_solve_a_task(tmp_path):
     env = DoorsEnv(grid_sizes=(2,))
     demos = [run_demonstrator(env, t, [0, i]) for i, t in enumerate(env.train_tasks(6, seed=4))]
     assert all(d is not None for d in demos)
@@ -40,6 +41,10 @@ def test_few_demos_learn_four_operators_using_the_given_skills_and_solve_a_task(
     assert len(learned.skills) in (3, 4) and len(trained) == 1
     assert len(given) == len(learned.skills) - 1
     assert {a.predicate.name for a in trained[0].operator.add_effects} == {"DoorIsOpen"}
+    # saved and loaded back (given skills by name and binding): the same plan solves
+    save_skills(learned, tmp_path / "skills", env_name=env.name)
+    loaded = load_skills(tmp_path / "skills", env.predicates, env.types, given_skills_of(env))
+    assert [s.name for s in loaded.skills] == [s.name for s in learned.skills]
     task = env.eval_tasks(1, seed=9)[0]
-    result = plan(task, learned.skills, env, PlanningConfig(timeout=60.0), np.random.default_rng(0))
+    result = plan(task, loaded.skills, env, PlanningConfig(timeout=60.0), np.random.default_rng(0))
     assert result.success

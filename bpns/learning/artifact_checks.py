@@ -188,9 +188,9 @@ def check_index_schema(index: Mapping[str, Any]) -> None:
             binding = e.get("binding")
             _require(
                 isinstance(binding, list)
-                and all(_is_int(i) for i in binding)
-                and sorted(binding) == list(range(len(params))),
-                f"skill {name}: 'binding' is not a permutation of its parameters",
+                and all(_is_int(i) and 0 <= i < len(params) for i in binding)
+                and len(set(binding)) == len(binding),
+                f"skill {name}: 'binding' does not name distinct parameters of the skill",
             )
             _require(
                 e.get("policy") is None and e.get("sampler") is None,

@@ -314,8 +314,13 @@ def _read_skill(
                 "which the environment does not declare"
             )
         binding = tuple(int(i) for i in entry["binding"])
-        if sorted(binding) != list(range(len(binding))) or len(binding) != len(op.parameters):
-            raise ArtifactError(f"{directory}: skill {entry['name']} has a bad binding {binding}")
+        if len(binding) != len(g.signature.parameters) or any(
+            g.signature.parameters[k].type != op.parameters[i].type for k, i in enumerate(binding)
+        ):
+            raise ArtifactError(
+                f"{directory}: skill {entry['name']} binds the given skill {g.name} with "
+                f"{binding}, which does not fit its signature"
+            )
         return Skill(
             op,
             BoundPolicy(g, binding),
