@@ -45,11 +45,12 @@ bench: $(STAMP)
 	$(PY) scripts/bench_planning.py --env cover --demos 100 -n 20
 
 # Each environment's section of docs/RESULTS.md; `make results ENVS=stick_button` for one.
-ENVS ?= cover stick_button coffee
+ENVS ?= cover stick_button coffee doors
 results: $(STAMP)
 	@for e in $(ENVS); do \
 	  case $$e in \
 	    cover) extra="--learn 100 1000 --ablations --bench";; \
+	    doors) extra="--learn 250 1000 --seed 3";; \
 	    *) extra="--learn 250 1000";; \
 	  esac; \
 	  $(PY) scripts/make_results.py --env $$e $$extra || exit 1; \
