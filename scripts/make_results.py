@@ -91,7 +91,16 @@ def main() -> None:
     parser.add_argument("--bench", action="store_true", help="also the two benchmarks")
     parser.add_argument("--work", type=Path, help="default: outputs/results/<env>")
     parser.add_argument("--reuse", action="store_true", help="reuse --work/demos.h5")
+    parser.add_argument(
+        "--assemble-only",
+        action="store_true",
+        help="measure nothing: rebuild docs/RESULTS.md from docs/results/ and docs/experiments/",
+    )
     args = parser.parse_args()
+    if args.assemble_only:
+        assemble(args.out)
+        print(f"wrote {args.out}")
+        return
     args.work = args.work or ROOT / "outputs" / "results" / args.env
 
     import mj_envs  # noqa: F401
