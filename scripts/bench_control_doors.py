@@ -72,7 +72,7 @@ def main() -> None:
 def write_section(path: Path, steps: int) -> None:
     rows = [measure(grid, steps) for grid in (2, 3, 5)]
     lines = [
-        "## Doors: one control step vs. raw MuJoCo and raw mink",
+        "### Doors: one control step vs. raw MuJoCo and raw mink",
         "",
         f"Produced by `python scripts/bench_control_doors.py --section {path} --steps {steps}` "
         f"on {platform.node()}: {platform.machine()}, Python {platform.python_version()}, "

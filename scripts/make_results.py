@@ -202,7 +202,7 @@ def experiment_sections() -> list[str]:
         lines = []
         for line in report.read_text().rstrip().splitlines():
             if line.startswith("#"):
-                line = "#" + line
+                line = "##" + line
             line = line.replace("](", f"](experiments/{report.parent.name}/")
             lines.append(line)
         out.append("\n".join(lines) + "\n")
