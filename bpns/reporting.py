@@ -115,15 +115,31 @@ def render_longest_solved(
     """Re-simulate :func:`longest_solved` from its task's initial state and render it to
     ``video`` with a PNG of its end; None when nothing was solved. Raises
     ``bpns.video.VideoError`` when rendering fails."""
-    from bpns.video import render_video
+    from bpns.pools import make_pool
 
     outcome = longest_solved(report)
     if outcome is None:
         return None
-    task = env.task(outcome.index, seed, train)
-    states = [task.init]
-    for action in outcome.actions:
-        states.append(env.simulate(states[-1], action))
     png = video.with_suffix(".png")
-    n = render_video(env, states, video, "overview", 640, 480, png)
+    # Rendered in a fresh worker: writing the mp4 forks ffmpeg, and a fork of a parent that
+    # holds a thousand loaded demonstrations fails with ENOMEM (`bpns run` at 1000 demos).
+    with make_pool(1) as pool:
+        n = pool.submit(
+            _render_task, env.name, outcome.index, seed, train, outcome.actions, video, png
+        ).result()
     return SolvedVideo(video, png, n, report.label, outcome)
+
+
+def _render_task(
+    env_name: str, index: int, seed: int, train: bool, actions, video: Path, png: Path
+) -> int:
+    """Re-simulate ``actions`` from task ``index`` of the seeded stream and render them."""
+    from bpns.registry import make_environment
+    from bpns.video import render_video
+
+    env = make_environment(env_name)
+    task = env.task(index, seed, train)
+    states = [task.init]
+    for action in actions:
+        states.append(env.simulate(states[-1], action))
+    return render_video(env, states, video, "overview", 640, 480, png)
