@@ -23,24 +23,23 @@ def env_by_name(name: str):
         raise UserError(str(err)) from None
 
 
-def positive(text: str) -> int:
+def whole_at_least(text: str, least: int, what: str = "a whole number") -> int:
+    """``text`` as an int >= ``least``, else an argparse error naming the bound."""
     try:
         v = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a number >= 1, got {v}")
+    if v < least:
+        raise argparse.ArgumentTypeError(f"expected {what} >= {least}, got {v}")
     return v
+
+
+def positive(text: str) -> int:
+    return whole_at_least(text, 1, "a number")
 
 
 def nonnegative(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {v}")
-    return v
+    return whole_at_least(text, 0)
 
 
 def nonnegative_float(text: str) -> float:

@@ -14,7 +14,7 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
-from bpns.cli.common import UserError
+from bpns.cli.common import UserError, whole_at_least
 from bpns.experiments.approach_info import approach_names
 from bpns.experiments.presets import PRESETS, SweepConfig, SweepConfigError
 
@@ -22,13 +22,7 @@ HELP = "sweep environments x demo counts x seeds x approaches; mean ± std table
 
 
 def _whole(text: str, least: int) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < least:
-        raise argparse.ArgumentTypeError(f"expected a number >= {least}, got {value}")
-    return value
+    return whole_at_least(text, least, "a number")
 
 
 def _count(text: str) -> int:
