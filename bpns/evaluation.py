@@ -82,6 +82,7 @@ class EvalReport:
     task_seed: int
     num_demos: int | None = None
     learning_seconds: float | None = None
+    train_tasks: bool = False  # the tasks came from the train distribution
 
     @property
     def num_tasks(self) -> int:
@@ -128,6 +129,7 @@ class EvalReport:
             "approach": self.approach,
             "label": self.label,
             "task_seed": self.task_seed,
+            "train_tasks": self.train_tasks,
             "num_demos": self.num_demos,
             "learning_seconds": self.learning_seconds,
             "planning": dataclasses.asdict(self.planning),
@@ -277,6 +279,7 @@ def evaluate(
         task_seed=spec.task_seed,
         num_demos=num_demos,
         learning_seconds=learning_seconds,
+        train_tasks=spec.train_tasks,
     )
 
 

@@ -14,10 +14,12 @@ from bpns.failures import MEANING
 
 
 def solved_line(report: EvalReport) -> str:
-    """``BPNS: solved 3/4 cover eval tasks (failures: {...})``."""
+    """``BPNS: solved 3/4 cover eval tasks (failures: {...})`` ("train tasks" when the
+    tasks came from the train distribution, ``bpns eval --train``)."""
+    kind = "train" if report.train_tasks else "eval"
     return (
         f"{report.label}: solved {report.num_solved}/{report.num_tasks} "
-        f"{report.env} eval tasks" + (f" (failures: {report.failures})" if report.failures else "")
+        f"{report.env} {kind} tasks" + (f" (failures: {report.failures})" if report.failures else "")
     )
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -151,3 +152,14 @@ def test_failed_tasks_are_explained_step_by_step(cover_env):
     text = "\n".join(explain_lines(report))
     assert "BPNS, task 0: refinement_failed" in text and "plan 1 (exhausted)" in text
     assert "reasons:" in text
+
+
+def test_summary_line_names_the_task_distribution_it_was_measured_on() -> None:
+    from bpns.reporting import solved_line
+
+    outcome = TaskOutcome(0, True, 1.0, None, 3, 5, 1, 1, 100, True)
+    eval_report = EvalReport("cover", "bpns", "BPNS", PlanningConfig(), (outcome,), 7)
+    train_report = dataclasses.replace(eval_report, train_tasks=True)
+    assert solved_line(eval_report) == "BPNS: solved 1/1 cover eval tasks"
+    assert solved_line(train_report) == "BPNS: solved 1/1 cover train tasks"
+    assert train_report.to_json()["train_tasks"] is True
