@@ -120,6 +120,9 @@ def test_finished_cells_hold_results_and_point_at_their_inputs(resumed_sweep):
     assert skills["result"]["num_demos"] == 3
     assert bpns["inputs"] == {"skills/cover-n3-seed0": skills["id"]}
     assert bpns["result"]["learning_seconds"] == skills["result"]["learning_seconds"]
+    assert skills["result"]["learning_seconds"] == pytest.approx(
+        sum(skills["result"]["stage_seconds"].values())
+    )
     assert oracle["result"]["num_solved"] == 1  # the hand-written skills solve the task
     assert len(oracle["result"]["tasks"]) == 1
     assert (store.root / "artifacts/skills/cover-n3-seed0/skills.json").is_file()
@@ -287,3 +290,21 @@ def test_presets_are_frozen_and_overrides_are_checked():
         small.with_overrides(seeds=[1, 1])
     with pytest.raises(SweepConfigError, match="eval_tasks"):
         small.with_overrides(eval_tasks=0)
+
+
+def test_each_approach_is_charged_for_the_learning_it_uses():
+    from bpns.experiments.approach_info import learning_seconds
+
+    skills = {
+        "learning_seconds": 15.0,
+        "stage_seconds": {
+            "segment": 1.0, "partition": 1.0, "operators": 1.0, "policies": 5.0, "samplers": 7.0
+        },
+        "baseline_seconds": {"gnn_meta": 100.0, "gnn_bc": 200.0, "nosubgoal": 10.0},
+    }
+    assert learning_seconds("bpns", skills) == learning_seconds("samples1", skills) == 15.0
+    assert learning_seconds("nosubgoal", skills) == 10.0  # its own whole pipeline
+    assert learning_seconds("gnn-meta", skills) == 115.0  # GNN + the skills it executes
+    assert learning_seconds("gnn-meta-nosubgoal", skills) == 110.0
+    assert learning_seconds("gnn-bc", skills) == 200.0  # the demonstrations alone
+    assert learning_seconds("gnn-bc", {"learning_seconds": 15.0}) is None  # not recorded

@@ -107,6 +107,10 @@ class ApproachEntry:
     adjust: Callable[[PlanningConfig], PlanningConfig] = _same
     # learned by `bpns learn --baselines` beside the skills (bpns.learning.baselines)
     needs_baselines: bool = False
+    # the learning stages whose time is this approach's learning time: names from the
+    # skills pipeline (bpns.learning.pipeline.STAGES) and the baselines
+    # (bpns.learning.baselines); None: the whole skills pipeline
+    learned_stages: tuple[str, ...] | None = None
 
     def planning_config(self, base: PlanningConfig) -> PlanningConfig:
         return self.adjust(base)

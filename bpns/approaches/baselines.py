@@ -37,6 +37,7 @@ from bpns.learning.given import given_skills_of
 from bpns.learning.gnn_artifacts import BC_FILE, META_FILE, load_bc_policy, load_metacontroller
 from bpns.learning.gnn_bc import GNNPolicy
 from bpns.learning.gnn_meta import GNNMetacontroller
+from bpns.learning.pipeline import STAGES
 from bpns.learning.samplers import CurrentStateSampler
 from bpns.planning.config import PlanningConfig
 from bpns.structs import GroundAtom, Skill, State, Task
@@ -150,6 +151,7 @@ NOSUBGOAL = ApproachEntry(
     _nosubgoal,
     _one_sample,
     needs_baselines=True,
+    learned_stages=("nosubgoal",),  # a whole pipeline of its own
 )
 GNN_META = ApproachEntry(
     "gnn-meta",
@@ -158,6 +160,7 @@ GNN_META = ApproachEntry(
     SkillSource.LEARNED,
     _gnn_meta,
     needs_baselines=True,
+    learned_stages=(*STAGES, "gnn_meta"),  # it runs the BPNS skills
 )
 GNN_META_NOSUBGOAL = ApproachEntry(
     "gnn-meta-nosubgoal",
@@ -166,6 +169,7 @@ GNN_META_NOSUBGOAL = ApproachEntry(
     SkillSource.LEARNED,
     _gnn_meta_nosubgoal,
     needs_baselines=True,
+    learned_stages=("nosubgoal", "gnn_meta"),
 )
 GNN_BC = ApproachEntry(
     "gnn-bc",
@@ -174,4 +178,5 @@ GNN_BC = ApproachEntry(
     SkillSource.LEARNED,
     _gnn_bc,
     needs_baselines=True,
+    learned_stages=("gnn_bc",),
 )

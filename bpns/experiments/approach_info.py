@@ -1,13 +1,17 @@
 """The one place where experiments read the approach registry.
 
-Experiments name approaches and need four facts about each: whether it plans with
+Experiments name approaches and need five facts about each: whether it plans with
 skills learned from demonstrations (so its eval cells depend on a skills cell and on a
 demo count), whether it can run on a given environment, how it adjusts the
-environment's planning settings, and its label in tables and figures. Everything else
+environment's planning settings, how long learning what it uses took, and its label in
+tables and figures. Everything else
 goes through ``bpns.evaluation`` by name.
 """
 
 from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
 
 from bpns.approaches import SkillSource, get_approach
 from bpns.approaches import approach_names as _registered
@@ -44,3 +48,17 @@ def planning_config(name: str, base: PlanningConfig) -> PlanningConfig:
 
 def label(name: str) -> str:
     return get_approach(name).label
+
+
+def learning_seconds(name: str, skills_result: Mapping[str, Any]) -> float | None:
+    """Seconds spent learning what ``name`` uses, from the result of the skills cell it
+    used: the stages its registry entry names (``learned_stages``), or the whole skills
+    pipeline. GNN BC trains on the demonstrations alone, so it is not charged for the
+    BPNS skills stored beside it. None when the cell recorded no such stage."""
+    wanted = get_approach(name).learned_stages
+    if wanted is None:
+        return skills_result.get("learning_seconds")
+    stages = {**skills_result.get("stage_seconds", {}), **skills_result.get("baseline_seconds", {})}
+    if any(s not in stages for s in wanted):
+        return None
+    return sum(stages[s] for s in wanted)

@@ -49,7 +49,9 @@ def write_report(
         f"demonstrations, skills and {config.eval_tasks} eval tasks; planning timeout "
         f"{config.timeout:g} s per task. Values are mean ± std over seeds (population std); "
         "times are over solved tasks, nodes created over all tasks; learning time is the "
-        "learning pipeline alone.",
+        "time spent learning what the approach uses, without loading the demonstrations "
+        "(BPNS and its planning ablations: the skills pipeline; No Subgoal: its own skills; "
+        "GNN Meta: the GNN plus the skills it executes; GNN BC: its GNN).",
         "",
     ]
     last_run = _last_run(out / "sweep.json")

@@ -22,6 +22,7 @@ from typing import Any
 
 from bpns.atomic import atomic_path
 from bpns.environment import Environment
+from bpns.experiments import approach_info
 from bpns.experiments.backends import Backend
 from bpns.experiments.cells import DEMOS, EVAL, SKILLS, Cell, plan_cells
 from bpns.experiments.presets import SweepConfig
@@ -156,13 +157,14 @@ def _job(
         num_demos = sum(1 for i in solved if i < (cell.count or 0))
         return CellJob(cell, output, inputs, num_demos=num_demos)
     if cell.kind == EVAL and cell.deps:
+        assert cell.approach is not None
         skills = done[cell.deps[0]]["result"]
         return CellJob(
             cell,
             output,
             inputs,
             num_demos=skills["num_demos"],
-            learning_seconds=skills["learning_seconds"],
+            learning_seconds=approach_info.learning_seconds(cell.approach, skills),
         )
     return CellJob(cell, output, inputs)
 

@@ -114,6 +114,7 @@ def _learn(job: CellJob) -> dict[str, Any]:
         "num_skills": len(learned.skills),
         "skills": [s.name for s in learned.skills],
         "learning_seconds": learned.stats.total_seconds,
+        "stage_seconds": dict(learned.stats.stage_seconds),
         "load_seconds": load_seconds,
         "stats": str(learned.stats),
     }
