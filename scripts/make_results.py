@@ -208,7 +208,38 @@ def experiment_sections() -> list[str]:
         out.append("\n".join(lines) + "\n")
     if out:
         out.insert(0, "## Means and spread over seeds (`bpns experiment`)\n")
+        out.insert(1, experiment_summary())
     return out
+
+
+def experiment_summary() -> str:
+    """One table of solved % (mean ± std over seeds) for every approach (rows) and every
+    (environment, demo count) swept (columns), from the sweeps' results.json."""
+    rows: list[dict] = []
+    for path in sorted(EXPERIMENTS.glob("*/results.json")):
+        rows += json.loads(path.read_text())["rows"]
+    columns = sorted({(r["env"], r["demos"]) for r in rows if r["demos"] is not None})
+    approaches = list(dict.fromkeys(r["label"] for r in rows))
+    cell: dict[tuple[str, str, int], str] = {}
+    for r in rows:
+        sp = r["solved_percent"]
+        text = f"{sp['mean']:.1f} ± {sp['std']:.1f}"
+        for env, demos in columns:
+            if env == r["env"] and r["demos"] in (None, demos):
+                cell[(r["label"], env, demos)] = text
+    head = "| Approach | " + " | ".join(f"{e} {n}" for e, n in columns) + " |"
+    lines = [
+        "Eval tasks solved (%), mean ± std over the seeds of each sweep below; columns are "
+        "environment and number of demonstrations (the oracle learns nothing: the same "
+        "number in each of its environment's columns); – where not run.",
+        "",
+        head,
+        "|---|" + "---:|" * len(columns),
+    ]
+    for a in approaches:
+        values = [cell.get((a, e, n), "–") for e, n in columns]
+        lines.append(f"| {a} | " + " | ".join(values) + " |")
+    return "\n".join(lines) + "\n"
 
 
 def control_bench() -> list[str]:

@@ -41,7 +41,7 @@ def write_report(
     preset = PRESETS.get(config.name)
     overridden = "" if preset == config else " with overrides"
     text = [
-        f"# Experiment: preset `{config.name}`{overridden}",
+        f"# Experiment: {', '.join(config.envs)}, preset `{config.name}`{overridden}",
         "",
         f"Produced by `{command}`.",
         "",
