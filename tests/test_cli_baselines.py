@@ -42,6 +42,13 @@ def test_every_baseline_evaluates_as_an_approach_row(skills_with_baselines, tmp_
     table = capsys.readouterr().out
     for label in ("BPNS No Subgoal", "GNN Meta", "GNN Meta No Subgoal", "GNN BC"):
         assert f"| {label} |" in table
+    # each row is charged for what it learned: GNN Meta for its GNN on top of the BPNS
+    # skills it executes, GNN BC for its GNN alone
+    skills = json.loads((skills_with_baselines / "skills.json").read_text())
+    pipeline = sum(t for _, t in skills["stats"]["stage_seconds"])
+    learning = {r["approach"]: r["learning_seconds"] for r in reports}
+    assert learning["gnn-meta"] > pipeline
+    assert learning["gnn-bc"] > 0 and learning["gnn-bc"] != pytest.approx(pipeline)
 
 
 def test_a_baseline_without_its_model_is_one_clear_error(tmp_path, capsys, skills_with_baselines):

@@ -18,7 +18,7 @@ from __future__ import annotations
 import abc
 import dataclasses
 import enum
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -114,6 +114,21 @@ class ApproachEntry:
 
     def planning_config(self, base: PlanningConfig) -> PlanningConfig:
         return self.adjust(base)
+
+    def learning_seconds(
+        self, pipeline: Mapping[str, float], baselines: Mapping[str, float]
+    ) -> float | None:
+        """Seconds spent learning what this approach uses, from the seconds of each stage
+        of the skills pipeline and of each baseline learned; None if a stage it uses was
+        not recorded (or it learns nothing)."""
+        if self.skills is not SkillSource.LEARNED:
+            return None
+        if self.learned_stages is None:
+            return sum(pipeline.values()) if pipeline else None
+        stages = {**pipeline, **baselines}
+        if any(s not in stages for s in self.learned_stages):
+            return None
+        return sum(stages[s] for s in self.learned_stages)
 
     def make(
         self, env: Environment, planning: PlanningConfig, skills_dir: str | Path | None = None

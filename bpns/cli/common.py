@@ -173,6 +173,7 @@ def evaluate_approaches(
     from bpns.approaches import NoOracleSkillsError, SkillSource, get_approach
     from bpns.evaluation import EvalSpec, evaluate
     from bpns.learning.artifacts import ArtifactError
+    from bpns.learning.baselines import saved_baseline_seconds
     from bpns.reporting import solved_line
 
     stats = learned.stats if learned is not None else None
@@ -200,13 +201,18 @@ def evaluate_approaches(
             train_tasks=train,
             validate=validate,
         )
+        learning_seconds = None
+        if learned_approach and stats is not None and skills_dir is not None:
+            learning_seconds = approach.learning_seconds(
+                dict(stats.stage_seconds), saved_baseline_seconds(skills_dir)
+            )
         try:
             report = evaluate(
                 spec,
                 num_tasks,
                 workers,
                 num_demos=stats.num_demos if learned_approach and stats else None,
-                learning_seconds=stats.total_seconds if learned_approach and stats else None,
+                learning_seconds=learning_seconds,
                 progress=lambda it, n, label=approach.label: progress(it, n, f"eval {label}"),
             )
         except NoOracleSkillsError as err:

@@ -52,13 +52,9 @@ def label(name: str) -> str:
 
 def learning_seconds(name: str, skills_result: Mapping[str, Any]) -> float | None:
     """Seconds spent learning what ``name`` uses, from the result of the skills cell it
-    used: the stages its registry entry names (``learned_stages``), or the whole skills
-    pipeline. GNN BC trains on the demonstrations alone, so it is not charged for the
-    BPNS skills stored beside it. None when the cell recorded no such stage."""
-    wanted = get_approach(name).learned_stages
-    if wanted is None:
-        return skills_result.get("learning_seconds")
-    stages = {**skills_result.get("stage_seconds", {}), **skills_result.get("baseline_seconds", {})}
-    if any(s not in stages for s in wanted):
-        return None
-    return sum(stages[s] for s in wanted)
+    used (its per-stage and per-baseline seconds; see ``ApproachEntry.learning_seconds``).
+    GNN BC trains on the demonstrations alone, so it is not charged for the BPNS skills
+    stored beside it."""
+    return get_approach(name).learning_seconds(
+        skills_result.get("stage_seconds", {}), skills_result.get("baseline_seconds", {})
+    )

@@ -15,6 +15,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import time
 from collections.abc import Callable, Collection, Sequence
@@ -25,7 +26,15 @@ from bpns.environment import Environment
 from bpns.learning.artifacts import save_skills
 from bpns.learning.given import GivenSkill, given_skills_of
 from bpns.learning.gnn import GNNConfig, GNNTrainingStats
-from bpns.learning.gnn_artifacts import BC_FILE, META_FILE, save_bc_policy, save_metacontroller
+from bpns.learning.gnn_artifacts import (
+    BC_FILE,
+    KIND_BC,
+    KIND_META,
+    META_FILE,
+    save_bc_policy,
+    save_metacontroller,
+    saved_info,
+)
 from bpns.learning.gnn_bc import GNNPolicy, bc_examples, train_bc_policy
 from bpns.learning.gnn_meta import GNNMetacontroller, metacontroller_examples, train_metacontroller
 from bpns.learning.graphs import GraphVocabulary
@@ -201,3 +210,24 @@ def learn_baselines_into(
     )
     save_baselines(learned, directory, env.name)
     return learned.stage_seconds
+
+
+def saved_baseline_seconds(directory: str | os.PathLike) -> dict[str, float]:
+    """The training seconds recorded with each baseline saved in a skills ``directory``
+    (GNN training alone; labelling the segments is not included), by stage name as in
+    ``learn_baselines``; baselines absent or without a record are left out."""
+    d = Path(directory)
+    seconds: dict[str, float] = {}
+    for stage, file, kind in (("gnn_meta", META_FILE, KIND_META), ("gnn_bc", BC_FILE, KIND_BC)):
+        if (d / file).is_file():
+            stats = saved_info(d / file, kind).get("stats") or {}
+            if isinstance(stats.get("seconds"), (int, float)):
+                seconds[stage] = float(stats["seconds"])
+    index = d / NOSUBGOAL_DIR / "skills.json"
+    if index.is_file():
+        try:
+            stages = json.loads(index.read_text())["stats"]["stage_seconds"]
+            seconds["nosubgoal"] = float(sum(t for _, t in stages))
+        except (OSError, ValueError, KeyError, TypeError):
+            pass
+    return seconds
