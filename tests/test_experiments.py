@@ -278,6 +278,9 @@ def test_figures_are_written_as_valid_png_and_svg(tmp_path):
         else:
             assert ET.parse(path).getroot().tag.endswith("svg")
     assert not list(tmp_path.glob(".*"))  # no temporary files left behind
+    again = save_figure(success_vs_demos(rows), tmp_path / "again")
+    for first, second in zip(paths[:2], again):  # a rebuilt report changes no figure bytes
+        assert first.read_bytes() == second.read_bytes()
 
 
 def test_presets_are_frozen_and_overrides_are_checked():

@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
+import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
@@ -114,11 +115,14 @@ def success_vs_time(rows: Sequence[Row], timeout: float) -> Figure:
 
 
 def save_figure(fig: Figure, stem: Path) -> list[Path]:
-    """``stem``.png and ``stem``.svg, each written atomically."""
+    """``stem``.png and ``stem``.svg, each written atomically; the same figure gives the
+    same bytes (no date, fixed SVG ids), so a rebuilt report only changes where a number
+    did."""
     written = []
     for fmt in FORMATS:
         path = stem.with_suffix(f".{fmt}")
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format=fmt, dpi=150)
+        metadata = {"Date": None} if fmt == "svg" else {}
+        with matplotlib.rc_context({"svg.hashsalt": "bpns"}), atomic_path(path) as tmp:
+            fig.savefig(tmp, format=fmt, dpi=150, metadata=metadata)
         written.append(path)
     return written
