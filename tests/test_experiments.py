@@ -283,6 +283,20 @@ def test_figures_are_written_as_valid_png_and_svg(tmp_path):
         assert first.read_bytes() == second.read_bytes()
 
 
+def test_figure_legend_lists_every_approach_once_and_covers_no_panel():
+    rows = aggregate(SYNTHETIC)
+    for fig in (success_vs_demos(rows), success_vs_time(rows, timeout=5.0)):
+        fig.canvas.draw()  # lays out the constrained figure
+        assert all(ax.get_legend() is None for ax in fig.axes)
+        (legend,) = fig.legends
+        labels = [t.get_text() for t in legend.get_texts()]
+        assert len(labels) == len(set(labels)) == len({r.approach for r in rows})
+        box = legend.get_window_extent()
+        for ax in fig.axes:
+            assert not box.overlaps(ax.get_window_extent())
+            assert box.y1 <= ax.get_window_extent().y0  # below the panels
+
+
 def test_presets_are_frozen_and_overrides_are_checked():
     small = PRESETS["small"]
     with pytest.raises(dataclasses.FrozenInstanceError):

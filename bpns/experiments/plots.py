@@ -23,7 +23,7 @@ from bpns.atomic import atomic_path
 from bpns.experiments.aggregate import Row
 
 FORMATS = ("png", "svg")
-MARKERS = ("o", "s", "^", "D", "v", "P")
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 
 
 def _colours(rows: Sequence[Row]) -> dict[str, str]:
@@ -33,7 +33,7 @@ def _colours(rows: Sequence[Row]) -> dict[str, str]:
 
 
 def _panels(n: int, title: str) -> tuple[Figure, list]:
-    fig = Figure(figsize=(4.2 * n + 0.6, 3.6), layout="constrained")
+    fig = Figure(figsize=(4.6 * n + 1.2, 3.6), layout="constrained")
     axes = fig.subplots(1, n, squeeze=False)[0]
     fig.suptitle(title)
     return fig, list(axes)
@@ -78,7 +78,7 @@ def success_vs_demos(rows: Sequence[Row]) -> Figure:
         ax.set_ylabel("eval tasks solved (%)")
         ax.set_title(env)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, loc="best")
+    _legend_below(fig, axes)
     return fig
 
 
@@ -110,8 +110,31 @@ def success_vs_time(rows: Sequence[Row], timeout: float) -> Figure:
         ax.set_ylabel("eval tasks solved within t (%)")
         ax.set_title(env)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, loc="best")
+    _legend_below(fig, axes)
     return fig
+
+
+def _legend_below(fig: Figure, axes: Sequence) -> None:
+    """One legend for every panel, below them: inside a panel it hid the very points
+    (eight approaches leave no empty corner)."""
+    entries: dict[str, object] = {}
+    for ax in axes:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            entries.setdefault(label, handle)
+    if not entries:
+        return
+    columns = min(2 * len(axes), len(entries))
+    rows = -(-len(entries) // columns)
+    width, height = fig.get_size_inches()
+    fig.set_size_inches(width, height + 0.2 * rows + 0.1)
+    fig.legend(
+        list(entries.values()),
+        list(entries),
+        loc="outside lower center",
+        ncols=columns,
+        fontsize=8,
+        frameon=False,
+    )
 
 
 def save_figure(fig: Figure, stem: Path) -> list[Path]:
