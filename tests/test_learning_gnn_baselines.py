@@ -12,7 +12,12 @@ import pytest
 
 from bpns.abstraction import abstract
 from bpns.learning.artifacts import ArtifactError
-from bpns.learning.baselines import BaselinesConfig, learn_baselines, save_baselines
+from bpns.learning.baselines import (
+    BaselinesConfig,
+    LearnedBaselines,
+    learn_baselines,
+    save_baselines,
+)
 from bpns.learning.config import LearningConfig
 from bpns.learning.gnn import GNNConfig, torch_reference
 from bpns.learning.gnn_artifacts import (
@@ -224,3 +229,40 @@ def test_learn_baselines_reuses_demos_and_operators_and_saves_into_a_skills_dir(
     assert sorted(p.name for p in written) == ["gnn_bc.npz", "gnn_meta.npz"]
     load_metacontroller(tmp_path / "gnn_meta.npz", skills.operators, toy.PREDICATES, toy.TYPES)
     load_bc_policy(tmp_path / "gnn_bc.npz", toy.PREDICATES, toy.TYPES)
+
+
+def _toy_baselines(learning_seed: int, seed: int | None) -> LearnedBaselines:
+    skills = LearnedSkills(
+        tuple(toy_gnn.oracle_skills()), toy.PREDICATES, LearningConfig(seed=learning_seed)
+    )
+    config = BaselinesConfig(
+        meta=GNNConfig(max_steps=3),
+        bc=GNNConfig(max_steps=3, max_examples=30),
+        nosubgoal=False,
+        seed=seed,
+    )
+    demos = toy_gnn.demos(6, seed=11)
+    return learn_baselines(demos, toy.PREDICATES, toy.TYPES, toy.CONTACT_PREDICATES, skills, config)
+
+
+def _saved_arrays(learned: LearnedBaselines, directory) -> dict[str, np.ndarray]:
+    directory.mkdir()
+    arrays = {}
+    for path in save_baselines(learned, directory):
+        with np.load(path) as data:
+            arrays.update({f"{path.name}/{k}": data[k] for k in data.files if k != "meta.json"})
+    return arrays
+
+
+def test_gnns_take_the_learning_seed_unless_a_seed_is_given(tmp_path) -> None:
+    by_learning_seed = _toy_baselines(learning_seed=4, seed=None)
+    assert by_learning_seed.config.meta.seed == by_learning_seed.config.bc.seed == 4
+    given = _toy_baselines(learning_seed=4, seed=9)
+    assert given.config.meta.seed == given.config.bc.seed == 9
+
+    first = _saved_arrays(by_learning_seed, tmp_path / "a")
+    again = _saved_arrays(_toy_baselines(learning_seed=4, seed=None), tmp_path / "b")
+    other = _saved_arrays(_toy_baselines(learning_seed=5, seed=None), tmp_path / "c")
+    assert first.keys() == again.keys() == other.keys()
+    assert all(np.array_equal(first[k], again[k]) for k in first)  # same seed, same weights
+    assert not all(np.array_equal(first[k], other[k]) for k in first)  # another draw

@@ -25,6 +25,12 @@ from bpns.planning.config import PlanningConfig, planning_config_for
 
 DEMOS, SKILLS, EVAL = "demos", "skills", "eval"
 
+#: The GNN baselines' seed in every skills cell, whatever the cell's seed: a sweep's
+#: spread over seeds is over demonstrations, tasks and the BPNS networks' seeds, while
+#: the GNNs start from the same weights (the stored sweeps were computed so, and the
+#: seed is not in a cell's settings). `bpns learn --seed S --baselines` seeds them with S.
+SWEEP_GNN_SEED = 0
+
 
 @dataclass(frozen=True)
 class Cell:

@@ -10,9 +10,10 @@ from typing import Any
 
 from bpns.atomic import atomic_path
 from bpns.experiments.aggregate import Row, aggregate, markdown_table
-from bpns.experiments.cells import EVAL, Cell
+from bpns.experiments import approach_info
+from bpns.experiments.cells import EVAL, SWEEP_GNN_SEED, Cell
 from bpns.experiments.plots import save_figure, success_vs_demos, success_vs_time
-from bpns.experiments.presets import SweepConfig
+from bpns.experiments.presets import PRESETS, SweepConfig
 from bpns.experiments.store import CellStore
 
 FIG_DEMOS = "success_vs_demos"
@@ -36,8 +37,6 @@ def write_report(
     if rows:
         written += save_figure(success_vs_demos(rows), out / FIG_DEMOS)
         written += save_figure(success_vs_time(rows, config.timeout), out / FIG_TIME)
-    from bpns.experiments.presets import PRESETS
-
     preset = PRESETS.get(config.name)
     overridden = "" if preset == config else " with overrides"
     text = [
@@ -51,7 +50,13 @@ def write_report(
         "times are over solved tasks, nodes created over all tasks; learning time is the "
         "time spent learning what the approach uses, without loading the demonstrations "
         "(BPNS and its planning ablations: the skills pipeline; No Subgoal: its own skills; "
-        "GNN Meta: the GNN plus the skills it executes; GNN BC: its GNN).",
+        "GNN Meta: the GNN plus the skills it executes; GNN BC: its GNN)."
+        + (
+            f" The GNN baselines start from the same weights (seed {SWEEP_GNN_SEED}) in "
+            "every seed; No Subgoal's networks take the seed like BPNS's."
+            if any(approach_info.needs_baselines(a) for a in config.approaches)
+            else ""
+        ),
         "",
     ]
     last_run = _last_run(out / "sweep.json")

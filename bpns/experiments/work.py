@@ -13,7 +13,7 @@ import traceback
 from dataclasses import dataclass
 from typing import Any
 
-from bpns.experiments.cells import DEMOS, EVAL, SKILLS, Cell
+from bpns.experiments.cells import DEMOS, EVAL, SKILLS, SWEEP_GNN_SEED, Cell
 
 
 @dataclass(frozen=True)
@@ -103,10 +103,14 @@ def _learn(job: CellJob) -> dict[str, Any]:
     save_skills(learned, job.output, overwrite=True, env_name=env.name)
     baseline_seconds: dict[str, float] = {}
     if job.cell.baselines:
-        from bpns.learning.baselines import learn_baselines_into
+        from bpns.learning.baselines import BaselinesConfig, learn_baselines_into
 
         # after the skills: saving them replaces the directory
-        baseline_seconds = dict(learn_baselines_into(job.output, env, demos, learned))
+        baseline_seconds = dict(
+            learn_baselines_into(
+                job.output, env, demos, learned, BaselinesConfig(seed=SWEEP_GNN_SEED)
+            )
+        )
     assert learned.stats is not None
     return {
         "baseline_seconds": baseline_seconds,

@@ -59,6 +59,19 @@ class BaselinesConfig:
         default_factory=lambda: GNNConfig(max_examples=20000, max_steps=20000)
     )
     nosubgoal: bool = True
+    #: seed of both GNNs (initial weights, batches, BC's subsample), replacing theirs;
+    #: None: the BPNS skills' learning seed, so one ``bpns learn --seed`` seeds all
+    #: network training and a different seed is a different draw for every approach
+    seed: int | None = None
+
+    def seeded(self, seed: int) -> BaselinesConfig:
+        """These settings with both GNNs' configs carrying ``seed``."""
+        return dataclasses.replace(
+            self,
+            meta=None if self.meta is None else dataclasses.replace(self.meta, seed=seed),
+            bc=None if self.bc is None else dataclasses.replace(self.bc, seed=seed),
+            seed=seed,
+        )
 
     @staticmethod
     def with_max_steps(steps: int) -> BaselinesConfig:
@@ -96,9 +109,10 @@ def learn_baselines(
     """Learn the baselines ``config`` asks for. ``predicates`` and ``types`` are the
     environment's declared ones (they fix the graph vocabulary); ``skills`` are the
     BPNS skills learned from the same ``demos`` (their operators label the
-    metacontroller's data; their learning config gives segmentation and the
-    No-Subgoal skills' settings)."""
+    metacontroller's data; their learning config gives segmentation, the
+    No-Subgoal skills' settings and, unless ``config.seed`` is set, the GNNs' seed)."""
     config = BaselinesConfig() if config is None else config
+    config = config.seeded(skills.config.seed if config.seed is None else config.seed)
     say = report or (lambda message: None)
     vocab = GraphVocabulary.build(types, predicates)
     seconds: dict[str, float] = {}
