@@ -19,7 +19,8 @@ def solved_line(report: EvalReport) -> str:
     kind = "train" if report.train_tasks else "eval"
     return (
         f"{report.label}: solved {report.num_solved}/{report.num_tasks} "
-        f"{report.env} {kind} tasks" + (f" (failures: {report.failures})" if report.failures else "")
+        f"{report.env} {kind} tasks"
+        + (f" (failures: {report.failures})" if report.failures else "")
     )
 
 

@@ -18,6 +18,7 @@ from bpns.demos import ReplayReport
 from bpns.environment import Environment
 
 if TYPE_CHECKING:
+    from bpns.learning.baselines import BaselinesConfig
     from bpns.learning.config import LearningConfig
     from bpns.learning.pipeline import LearnedSkills
 
@@ -167,13 +168,12 @@ def learn_to_directory(
     threads: int = 1,
     progress: Progress = _no_progress,
     report: Callable[[str], None] | None = None,
-    baselines: bool = False,
-    baseline_steps: int | None = None,
+    baselines: BaselinesConfig | None = None,
 ) -> LearnedRun:
     """Learn skills from the first ``limit`` (default: all) demonstrations of
     ``demos_path`` and save them to ``out`` (replacing it); with ``baselines`` also the
     paper's baselines from the same demonstrations, saved beside them
-    (:mod:`bpns.learning.baselines`; ``baseline_steps`` caps each GNN's gradient steps).
+    (:mod:`bpns.learning.baselines`).
     Raises ``bpns.datasets.DatasetError`` for a bad
     file and :class:`CannotLearnError` when the demos cannot be learned from."""
     from bpns.datasets import count_demonstrations, iter_demonstrations
@@ -196,12 +196,9 @@ def learn_to_directory(
         raise CannotLearnError(f"cannot learn from {demos_path}: {err}") from None
     save_skills(learned, out, overwrite=True, env_name=env.name)
     baseline_seconds = None
-    if baselines:
-        from bpns.learning.baselines import BaselinesConfig, learn_baselines_into
+    if baselines is not None:
+        from bpns.learning.baselines import learn_baselines_into
 
-        config_b = (
-            None if baseline_steps is None else BaselinesConfig.with_max_steps(baseline_steps)
-        )
         # after the skills: saving them replaces `out`
-        baseline_seconds = learn_baselines_into(out, env, demos, learned, config_b, report)
+        baseline_seconds = learn_baselines_into(out, env, demos, learned, baselines, report)
     return LearnedRun(learned, env.name, n, load_seconds, out, baseline_seconds)

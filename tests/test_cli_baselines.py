@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from bpns.cli import main
@@ -18,7 +19,7 @@ def skills_with_baselines(tmp_path_factory):
     demos, skills = work / "demos.h5", work / "skills"
     assert main(["demos", "--env", "cover", "-n", "6", "--workers", "1", "--out", str(demos)]) == 0
     argv = ["learn", str(demos), "--out", str(skills), "--baselines", "--baseline-steps", "60"]
-    assert main(argv) == 0
+    assert main([*argv, "--baseline-seed", "5"]) == 0
     return skills
 
 
@@ -27,6 +28,10 @@ def test_learn_baselines_writes_the_models_and_nosubgoal_skills(skills_with_base
     assert {"gnn_meta.npz", "gnn_bc.npz", "nosubgoal", "skills.json"} <= names
     index = json.loads((skills_with_baselines / "nosubgoal" / "skills.json").read_text())
     assert all(s["sampler"] is None for s in index["skills"])  # no subgoals, no samplers
+    for model in ("gnn_meta.npz", "gnn_bc.npz"):
+        with np.load(skills_with_baselines / model) as data:
+            header = json.loads(str(data["meta.json"]))
+        assert header["info"]["config"]["seed"] == 5  # --baseline-seed, not --seed's 0
 
 
 def test_every_baseline_evaluates_as_an_approach_row(skills_with_baselines, tmp_path, capsys):

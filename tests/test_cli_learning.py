@@ -115,6 +115,7 @@ def _cli(*args: str, cwd=None) -> subprocess.CompletedProcess:
         (("learn", "d.h5", "--out", "sk", "--near-goal-scale", "0"), "must be > 0 or 'off'"),
         (("learn", "d.h5", "--out", "sk", "--near-goal-scale", "x"), "--near-goal-scale"),
         (("learn", "d.h5", "--out", "sk", "--input-margin", "-1"), "--input-margin"),
+        (("learn", "d.h5", "--out", "sk", "--baseline-seed", "3"), "add --baselines"),
         (("skills", "show", "nowhere"), "not a skills directory"),
         (("eval", "--approach", "oracle"), "pass --env (or --skills)"),
         (("eval", "--env", "cover"), "learned approaches need --skills"),

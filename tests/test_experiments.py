@@ -279,7 +279,8 @@ def test_figures_are_written_as_valid_png_and_svg(tmp_path):
             assert ET.parse(path).getroot().tag.endswith("svg")
     assert not list(tmp_path.glob(".*"))  # no temporary files left behind
     again = save_figure(success_vs_demos(rows), tmp_path / "again")
-    for first, second in zip(paths[:2], again):  # a rebuilt report changes no figure bytes
+    # a rebuilt report changes no figure bytes
+    for first, second in zip(paths[:2], again, strict=True):
         assert first.read_bytes() == second.read_bytes()
 
 
@@ -315,7 +316,11 @@ def test_each_approach_is_charged_for_the_learning_it_uses():
     skills = {
         "learning_seconds": 15.0,
         "stage_seconds": {
-            "segment": 1.0, "partition": 1.0, "operators": 1.0, "policies": 5.0, "samplers": 7.0
+            "segment": 1.0,
+            "partition": 1.0,
+            "operators": 1.0,
+            "policies": 5.0,
+            "samplers": 7.0,
         },
         "baseline_seconds": {"gnn_meta": 100.0, "gnn_bc": 200.0, "nosubgoal": 10.0},
     }

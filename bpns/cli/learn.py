@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from bpns.cli.common import (
     UserError,
@@ -18,6 +19,9 @@ from bpns.cli.common import (
     tolerance_or_off,
 )
 from bpns.cli.paths import capped_to_cores, check_skills_dir
+
+if TYPE_CHECKING:
+    from bpns.learning.baselines import BaselinesConfig
 
 HELP = "learn neuro-symbolic skills from demonstrations"
 
@@ -79,6 +83,12 @@ def configure(p: argparse.ArgumentParser) -> None:
         type=positive,
         help="with --baselines: at most this many gradient steps per GNN (default 20000)",
     )
+    p.add_argument(
+        "--baseline-seed",
+        type=nonnegative,
+        help="with --baselines: seed of the GNNs (default: --seed), e.g. to measure how "
+        "much their initial weights matter on fixed skills",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     p.add_argument(
         "--threads",
@@ -98,6 +108,13 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--min-segment-fraction must be <= 1, got {args.min_segment_fraction}")
     if args.near_goal_scale == 0.0:
         raise UserError("--near-goal-scale must be > 0 or 'off', got 0")
+    baseline_flags = {
+        "--baseline-steps": args.baseline_steps,
+        "--baseline-seed": args.baseline_seed,
+    }
+    for flag, value in baseline_flags.items():
+        if value is not None and not args.baselines:
+            raise UserError(f"{flag} applies to the baselines: add --baselines")
     env = file_env(args.demos, None)
     threads = capped_to_cores(args.threads, "--threads")
     config = learning_config_for(
@@ -131,10 +148,20 @@ def run(args: argparse.Namespace) -> int:
             threads,
             progress,
             stage_reporter(),
-            baselines=args.baselines,
-            baseline_steps=args.baseline_steps,
+            baselines=_baselines_config(args) if args.baselines else None,
         )
     except (DatasetError, CannotLearnError) as err:
         raise UserError(str(err)) from None
     print_lines(learned)
     return 0
+
+
+def _baselines_config(args: argparse.Namespace) -> BaselinesConfig:
+    from bpns.learning.baselines import BaselinesConfig
+
+    base = (
+        BaselinesConfig()
+        if args.baseline_steps is None
+        else BaselinesConfig.with_max_steps(args.baseline_steps)
+    )
+    return dataclasses.replace(base, seed=args.baseline_seed)

@@ -9,8 +9,8 @@ from pathlib import Path
 from typing import Any
 
 from bpns.atomic import atomic_path
-from bpns.experiments.aggregate import Row, aggregate, markdown_table
 from bpns.experiments import approach_info
+from bpns.experiments.aggregate import Row, aggregate, markdown_table
 from bpns.experiments.cells import EVAL, SWEEP_GNN_SEED, Cell
 from bpns.experiments.plots import save_figure, success_vs_demos, success_vs_time
 from bpns.experiments.presets import PRESETS, SweepConfig

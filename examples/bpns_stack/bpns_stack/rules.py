@@ -26,9 +26,7 @@ HORIZON = 400
 NAMES = tuple(f"block{i}" for i in range(N_BLOCKS))
 
 ROBOT = Type("robot", ("x", "y", "z", "fingers"))
-BLOCK = Type(
-    "block", ("x", "y", "z", "grasped", "on_table", *(f"touching_{n}" for n in NAMES))
-)
+BLOCK = Type("block", ("x", "y", "z", "grasped", "on_table", *(f"touching_{n}" for n in NAMES)))
 
 
 def _holding(state: State, objs: Sequence[Object]) -> bool:
