@@ -42,7 +42,8 @@ def demo_names(data: h5py.Group) -> list[str]:
         link = data.get(name, getlink=True)
         if not isinstance(link, h5py.HardLink):
             raise ValueError(f"/data/{name} is a {type(link).__name__}, not a stored group")
-        if not isinstance(data[name], h5py.Group):
+        # the object's header only (opening ~10^3 groups as h5py objects costs ~0.1 s)
+        if h5py.h5o.get_info(data.id, name.encode()).type != h5py.h5o.TYPE_GROUP:
             raise ValueError(f"/data/{name} is not a group")
     return sorted(names, key=demo_index)
 

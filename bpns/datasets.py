@@ -70,9 +70,13 @@ def _write_demo(g: h5py.Group, env: Environment, demo: Demonstration) -> None:
 
 
 def load_demonstrations(
-    path: str | os.PathLike, env: Environment, indices: Iterable[int] | None = None
+    path: str | os.PathLike,
+    env: Environment,
+    indices: Iterable[int] | None = None,
+    *,
+    features_only: bool = False,
 ) -> list[Demonstration]:
-    return list(iter_demonstrations(path, env, indices))
+    return list(iter_demonstrations(path, env, indices, features_only=features_only))
 
 
 def count_demonstrations(path: str | os.PathLike) -> int:
@@ -81,8 +85,18 @@ def count_demonstrations(path: str | os.PathLike) -> int:
 
 
 def iter_demonstrations(
-    path: str | os.PathLike, env: Environment, indices: Iterable[int] | None = None
+    path: str | os.PathLike,
+    env: Environment,
+    indices: Iterable[int] | None = None,
+    *,
+    features_only: bool = False,
 ) -> Iterator[Demonstration]:
+    """The demonstrations at ``indices`` (default: all), checked as they are read.
+
+    ``features_only``: states carry their object features but no simulator state
+    (``State.sim`` is None), and the task's scene is not compiled. That is all learning
+    reads, and compiling one MJCF scene per demonstration is most of the loading time;
+    replaying, rendering or planning from the loaded states needs the default."""
     with _open(path) as f:
         data = _data(f, path)
         stored_env = checks.root_text_attr(f, "env")
@@ -94,7 +108,7 @@ def iter_demonstrations(
             if name not in data:
                 raise DatasetError(f"{path}: has no {name} (it holds {len(names)} demos)")
             try:
-                demo = _read_demo(data[name], env)
+                demo = _read_demo(data[name], env, features_only)
             except (KeyError, ValueError, TypeError, OSError, RuntimeError) as err:
                 raise DatasetError(f"{path}: {name} is damaged: {err}") from None
             yield demo
@@ -128,7 +142,12 @@ def _data(f: h5py.File, path: str | os.PathLike) -> h5py.Group:
         raise DatasetError(f"{path}: /data: {err}") from None
 
 
-def _read_demo(g: h5py.Group, env: Environment) -> Demonstration:
+def _columns(ds: h5py.Dataset) -> int:
+    """The declared columns of a flat-states dataset (-1 if it is not a matrix)."""
+    return ds.shape[1] if len(ds.shape) == 2 else -1
+
+
+def _read_demo(g: h5py.Group, env: Environment, features_only: bool) -> Demonstration:
     """Read and check one demo group (see :mod:`bpns.dataset_checks`); ValueError naming
     the first problem."""
     types = {t.name: t for t in env.types}
@@ -141,7 +160,6 @@ def _read_demo(g: h5py.Group, env: Environment) -> Demonstration:
     goal_spec = checks.parse_goal(checks.json_attr(g, "goal"))
     horizon = checks.int_attr(g, "horizon", 1, checks.MAX_ROWS)
     actions = checks.read_matrix(g, "actions", len(env.action_low))
-    world = env.load_world(checks.text_attr(g, "world"))
     feat_group = checks.member(g, "features", h5py.Group)
     if set(feat_group) != set(objects):
         raise ValueError(
@@ -149,16 +167,18 @@ def _read_demo(g: h5py.Group, env: Environment) -> Demonstration:
         )
     feats = {o: checks.read_matrix(feat_group, n, o.type.dim) for n, o in objects.items()}
     ds = checks.member(g, "states", h5py.Dataset)
-    flats = checks.read_matrix(g, "states", ds.shape[1] if len(ds.shape) == 2 else -1)
-    if len(flats) != len(actions) + 1 or any(len(v) != len(flats) for v in feats.values()):
+    flats = None if features_only else checks.read_matrix(g, "states", _columns(ds))
+    rows = len(flats) if flats is not None else ds.shape[0] if len(ds.shape) == 2 else -1
+    if rows != len(actions) + 1 or any(len(v) != rows for v in feats.values()):
         raise ValueError("states, features and actions have inconsistent lengths")
-    # only the environment knows its flat state size: let it load the first state
-    first = State({o: v[0] for o, v in feats.items()}, SimState(world, flats[0]))
-    env.state_from_flat(world, flats[0], first)
-    states = tuple(
-        State({o: v[i] for o, v in feats.items()}, SimState(world, flats[i]))
-        for i in range(len(flats))
-    )
+    sims: list[SimState | None] = [None] * rows
+    if flats is not None:
+        world = env.load_world(checks.text_attr(g, "world"))
+        # only the environment knows its flat state size: let it load the first state
+        env.state_from_flat(world, flats[0], State({o: v[0] for o, v in feats.items()}))
+        sims = [SimState(world, flat) for flat in flats]
+    columns = [(o, list(v)) for o, v in feats.items()]  # row views, made once per object
+    states = tuple(State({o: rows_of[i] for o, rows_of in columns}, sims[i]) for i in range(rows))
     goal = set()
     for pname, args in goal_spec:
         if pname not in preds:

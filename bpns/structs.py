@@ -38,10 +38,24 @@ class Type:
 
 @dataclass(frozen=True, order=True)
 class Object:
-    """A named object of a type (e.g. ``block0:block``)."""
+    """A named object of a type (e.g. ``block0:block``).
+
+    Objects key every state's feature dict and sit in every atom, so the hash is computed
+    once (a loaded dataset builds ~10^5 state dicts); it is recomputed on unpickling,
+    since string hashes differ between processes."""
 
     name: str
     type: Type
+    _hash: int = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_hash", hash((self.name, self.type)))
+
+    def __hash__(self) -> int:
+        return self._hash
+
+    def __reduce__(self) -> tuple[type[Object], tuple[str, Type]]:
+        return (Object, (self.name, self.type))
 
     def __str__(self) -> str:
         return f"{self.name}:{self.type.name}"

@@ -183,7 +183,8 @@ def learn_to_directory(
     total = count_demonstrations(demos_path)
     n = min(total, limit or total)
     t0 = time.perf_counter()
-    demos = list(progress(iter_demonstrations(demos_path, env, range(n)), n, "load", "demo"))
+    loading = iter_demonstrations(demos_path, env, range(n), features_only=True)
+    demos = list(progress(loading, n, "load", "demo"))
     load_seconds = time.perf_counter() - t0
     import torch
 

@@ -155,6 +155,24 @@ def test_damaged_demo_file_gives_one_dataset_error(demo_copy, cover_env, mutate,
         load_demonstrations(demo_copy, cover_env)
 
 
+#: damage to what only replay and planning read (the scene, the flat simulator states)
+SIMULATOR_ONLY = {_states_wrong_width, _inf_state, _mjcf_include, _mjcf_mesh_file}
+
+
+@pytest.mark.parametrize("mutate, message", CASES, ids=[c[0].__name__.strip("_") for c in CASES])
+def test_features_only_loading_still_checks_all_that_learning_reads(
+    demo_copy, cover_env, mutate, message
+):
+    with h5py.File(demo_copy, "a") as f:
+        mutate(f)
+    if mutate in SIMULATOR_ONLY:
+        demos = load_demonstrations(demo_copy, cover_env, features_only=True)
+        assert all(s.sim is None for d in demos for s in d.states)
+    else:
+        with pytest.raises(DatasetError, match="demo_|episode_1"):
+            load_demonstrations(demo_copy, cover_env, features_only=True)
+
+
 def test_bad_group_name_is_reported_when_counting_too(demo_copy):
     with h5py.File(demo_copy, "a") as f:
         _bad_group_name(f)

@@ -23,6 +23,20 @@ def test_saved_demos_replay_exactly_from_their_first_state(tmp_path, cover_env, 
         assert report.goal_reached
 
 
+def test_features_only_loading_gives_the_same_demos_without_simulator_states(
+    tmp_path, cover_env, cover_demos
+):
+    path = tmp_path / "demos.h5"
+    save_demonstrations(path, cover_env, cover_demos)
+    full = load_demonstrations(path, cover_env)
+    light = load_demonstrations(path, cover_env, features_only=True)
+    for a, b in zip(full, light, strict=True):
+        assert np.array_equal(a.actions, b.actions) and a.task.goal == b.task.goal
+        assert a.task.horizon == b.task.horizon and len(a.states) == len(b.states)
+        assert all(sa.allclose(sb) for sa, sb in zip(a.states, b.states, strict=True))
+        assert all(s.sim is not None for s in a.states) and all(s.sim is None for s in b.states)
+
+
 def test_corrupt_file_gives_one_clear_error(tmp_path, cover_env):
     bad = tmp_path / "bad.h5"
     bad.write_bytes(b"this is not hdf5" * 10)

@@ -91,7 +91,7 @@ def _learn(job: CellJob) -> dict[str, Any]:
     env = make_environment(job.cell.env)
     torch.set_num_threads(1)  # small networks: one thread is fastest, and cells run in parallel
     t0 = time.perf_counter()
-    demos = list(iter_demonstrations(job.inputs[0], env, range(job.num_demos)))
+    demos = list(iter_demonstrations(job.inputs[0], env, range(job.num_demos), features_only=True))
     load_seconds = time.perf_counter() - t0
     learned = learn_skills(
         demos,
