@@ -50,9 +50,9 @@ def demo_names(data: h5py.Group) -> list[str]:
 
 def member(group: h5py.Group, name: str, kind: type) -> Any:
     """``group[name]`` if it is a hard-linked ``kind`` (h5py.Group or h5py.Dataset)."""
-    if name not in group:
+    link = group.get(name, getlink=True)  # one lookup: a demo has ~10 members
+    if link is None:
         raise ValueError(f"{name!r} is missing")
-    link = group.get(name, getlink=True)
     if not isinstance(link, h5py.HardLink):
         raise ValueError(f"{name!r} is a {type(link).__name__}, not stored in this file")
     obj = group[name]
@@ -67,16 +67,17 @@ def read_matrix(group: h5py.Group, name: str, columns: int) -> np.ndarray:
     ds = member(group, name, h5py.Dataset)
     if ds.external or ds.is_virtual:
         raise ValueError(f"{name!r} refers to data outside this file")
-    if ds.dtype.kind not in "fiu" or ds.dtype.itemsize > 8:
-        raise ValueError(f"{name!r} has dtype {ds.dtype}, expected real numbers")
-    if len(ds.shape) != 2:
-        raise ValueError(f"{name!r} has shape {ds.shape}, expected (steps, {columns})")
-    rows, cols = ds.shape
+    dtype, shape = ds.dtype, ds.shape  # h5py properties: each access asks the library
+    if dtype.kind not in "fiu" or dtype.itemsize > 8:
+        raise ValueError(f"{name!r} has dtype {dtype}, expected real numbers")
+    if len(shape) != 2:
+        raise ValueError(f"{name!r} has shape {shape}, expected (steps, {columns})")
+    rows, cols = shape
     if cols != columns:
         raise ValueError(f"{name!r} has {cols} columns, the environment needs {columns}")
     if rows > MAX_ROWS or rows * cols * 8 > MAX_ARRAY_BYTES:
         raise ValueError(
-            f"{name!r} declares shape {ds.shape}: beyond the size limit of "
+            f"{name!r} declares shape {shape}: beyond the size limit of "
             f"{MAX_ROWS} rows and {MAX_ARRAY_BYTES} bytes"
         )
     out = np.asarray(ds[()], dtype=np.float64)
