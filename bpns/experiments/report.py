@@ -52,8 +52,8 @@ def write_report(
         "(BPNS and its planning ablations: the skills pipeline; No Subgoal: its own skills; "
         "GNN Meta: the GNN plus the skills it executes; GNN BC: its GNN)."
         + (
-            f" The GNN baselines start from the same weights (seed {SWEEP_GNN_SEED}) in "
-            "every seed; No Subgoal's networks take the seed like BPNS's."
+            f" The GNN baselines draw seed {SWEEP_GNN_SEED} in every seed (initial weights, "
+            "batches, BC's subsample); No Subgoal's networks take the seed like BPNS's."
             if any(approach_info.needs_baselines(a) for a in config.approaches)
             else ""
         ),
