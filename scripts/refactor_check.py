@@ -1,12 +1,13 @@
 """Did a refactor keep behaviour? Fingerprint demos, learned skills and eval outcomes.
 
-    python scripts/refactor_check.py run OUT [--envs cover stick_button coffee]
+    python scripts/refactor_check.py run OUT [--envs cover stick_button coffee] > before.json
     python scripts/refactor_check.py fingerprint OUT > after.json
     python scripts/refactor_check.py compare before.json after.json
 
 ``run`` collects demos, learns skills and evaluates them with fixed seeds through the CLI
 (Cover: 30 demos, BPNS and the oracle on 4 eval tasks; the others: 10 demos, the oracle
-on 4 eval tasks) into OUT/<env>/, then prints the fingerprint. Run it on the code before
+on 4 eval tasks) into OUT/<env>/, then prints the fingerprint (the commands' own output
+goes to stderr). Run it on the code before
 and after a change and ``compare``: the demonstrations (every stored array), the learned
 weights (by content, in the skills' order), the operators (without their names: a renamed
 operator is the same operator) and, per eval task, solved / actions / samples / simulator
@@ -32,7 +33,15 @@ LEARNED_EVAL = {"cover": ["bpns", "oracle"]}
 
 
 def bpns(*args: str) -> None:
-    subprocess.run([sys.executable, "-m", "bpns.cli", *args], check=True)
+    """One CLI command; its output goes to stderr so that stdout is the fingerprint."""
+    subprocess.run([sys.executable, "-m", "bpns.cli", *args], check=True, stdout=sys.stderr)
+
+
+def read_fingerprint(path: Path, parser: argparse.ArgumentParser) -> dict:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as err:
+        parser.error(f"{path}: not a fingerprint (the JSON `run` or `fingerprint` prints): {err}")
 
 
 def run(out: Path, envs: list[str]) -> None:
@@ -134,7 +143,7 @@ def main() -> int:
     c.add_argument("after", type=Path)
     args = parser.parse_args()
     if args.command == "compare":
-        diffs = compare(json.loads(args.before.read_text()), json.loads(args.after.read_text()))
+        diffs = compare(read_fingerprint(args.before, parser), read_fingerprint(args.after, parser))
         print("\n".join(diffs) if diffs else "identical: demos, weights, operators, outcomes")
         return 1 if diffs else 0
     if args.command == "run":
