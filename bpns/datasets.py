@@ -144,11 +144,6 @@ def _data(f: h5py.File, path: str | os.PathLike) -> h5py.Group:
         raise DatasetError(f"{path}: /data: {err}") from None
 
 
-def _columns(ds: h5py.Dataset) -> int:
-    """The declared columns of a flat-states dataset (-1 if it is not a matrix)."""
-    return ds.shape[1] if len(ds.shape) == 2 else -1
-
-
 def _read_demo(g: h5py.Group, env: Environment, features_only: bool) -> Demonstration:
     """Read and check one demo group (see :mod:`bpns.dataset_checks`); ValueError naming
     the first problem."""
@@ -169,8 +164,9 @@ def _read_demo(g: h5py.Group, env: Environment, features_only: bool) -> Demonstr
         )
     feats = {o: checks.read_matrix(feat_group, n, o.type.dim) for n, o in objects.items()}
     ds = checks.member(g, "states", h5py.Dataset)
-    flats = None if features_only else checks.read_matrix(g, "states", _columns(ds))
-    rows = len(flats) if flats is not None else ds.shape[0] if len(ds.shape) == 2 else -1
+    declared = ds.shape if len(ds.shape) == 2 else (-1, -1)  # (rows, flat state size)
+    flats = None if features_only else checks.read_matrix(g, "states", declared[1])
+    rows = declared[0] if flats is None else len(flats)
     if rows != len(actions) + 1 or any(len(v) != rows for v in feats.values()):
         raise ValueError("states, features and actions have inconsistent lengths")
     sims: list[SimState | None] = [None] * rows
