@@ -35,6 +35,8 @@ class Environment(Protocol):
     # Optional: contact changes closer than this many steps are one physical event for
     # segmentation (a release that bounces, a touch-down a step after letting go).
     # ``contact_settle_steps: int``
+    # Optional: the DART noise scale of the scripted demonstrations (0.0: none; see
+    # ``bpns.demo_attempts.ActionNoise``). ``demo_noise: float``
     # Optional: PlanningConfig fields this domain plans with by default, e.g. the
     # paper's ``{"n_abstract": 1000}`` where many abstract plans are not refinable.
     # ``planning_defaults: Mapping[str, object]``

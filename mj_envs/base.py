@@ -48,6 +48,10 @@ class MujocoEnv(abc.ABC):
     # Segmentation merges contact changes closer than this (bpns.learning.segmentation):
     # at 20 Hz a release or touch-down settles within three control steps.
     contact_settle_steps: int = 4
+    # DART noise of the scripted demonstrations (bpns.demo_attempts.ActionNoise): the
+    # executed action is the commanded one times (1 + scale * N(0, 1)) per dimension,
+    # and the commands are the labels. 0: plain demonstrations; domains opt in.
+    demo_noise: float = 0.0
 
     # -- what a domain declares -----------------------------------------------------
     @property

@@ -44,6 +44,9 @@ class StickButtonEnv(MujocoEnv):
     planning_defaults = {"n_abstract": 1000}
     # The demonstrator switches within millimetres of its goals (close the fingers, press).
     learning_defaults = {"near_goal_scale": 0.01}
+    # Demonstrations with signal-dependent noise (docs/METHOD.md, "Learning from few
+    # demonstrations"): the cloned stick press stopped rising only where the demos did.
+    demo_noise = 0.5
     controller_config = CONTROLLER
 
     @property
