@@ -70,6 +70,14 @@ class LearningConfig:
     # resolution near the subgoal, where demonstrators switch (policies.py). None: off,
     # as in the paper; domains whose demonstrators switch declare it (learning_defaults).
     near_goal_scale: float | None = None
+    # Train each skill's policy and subgoal generator also on the segments of operators
+    # whose add effects include all of its own (sharing.py): variants of one motion that
+    # segmentation split by what they leave behind. False: each operator's own data, as
+    # in the paper.
+    share_effect_data: bool = True
+    # The subgoal generator's mean = a ridge-regression map of the start scope + the
+    # network's residual (samplers.LinearBase). False: the network alone, as in the paper.
+    linear_sampler_base: bool = True
     # A scope dimension counts as "changing" when |final - initial| exceeds this in some
     # segment, and as static when its range over all the skill's states is within it.
     change_tolerance: float = 0.0
