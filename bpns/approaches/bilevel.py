@@ -64,7 +64,7 @@ def _explanation(stats: PlanningStats) -> dict:
 
 def oracle_skills(env: Environment) -> list[Skill]:
     """The environment's hand-written skills."""
-    make = getattr(env, "oracle_skills", None)
+    make = env.capabilities.oracle_skills
     if make is None:
         raise NoOracleSkillsError(f"environment {env.name!r} declares no oracle skills")
     return list(make())
