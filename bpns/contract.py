@@ -20,7 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
+from bpns.datasets import load_demonstrations, save_demonstrations
 from bpns.demo_attempts import attempt_demonstration
+from bpns.demos import replay
 from bpns.environment import Environment, declaration_problem
 from bpns.learning.config import learning_config_for
 from bpns.planning.config import planning_config_for
@@ -288,9 +290,6 @@ def check_demonstrator(ctx: _Context) -> None:
 
 
 def check_replay(ctx: _Context) -> None:
-    from bpns.datasets import load_demonstrations, save_demonstrations
-    from bpns.demos import replay
-
     if not ctx.demos and "demonstrator" not in ctx.report.checks:
         cfg = ctx.config
         for i in range(cfg.n_demos):
