@@ -90,9 +90,9 @@ class ActionNoise:
         return np.minimum(np.maximum(noisy, self.low), self.high)
 
 
-def demo_noise_of(env: object) -> float:
-    """The DART noise scale ``env`` declares for its demonstrations (0.0 if none)."""
-    return float(getattr(env, "demo_noise", 0.0))
+def demo_noise_of(env: Environment) -> float:
+    """The DART noise scale ``env`` declares for its demonstrations (0.0: none)."""
+    return env.capabilities.demo_noise
 
 
 def attempt_demonstration(

@@ -13,6 +13,7 @@ from bpns.abstraction import abstract
 from bpns.demo_attempts import DemoAttempt, attempt_demonstration
 from bpns.environment import Environment
 from bpns.pools import bounded_map, capped_workers, make_pool
+from bpns.registry import make_environment
 from bpns.structs import Demonstration, Task
 
 
@@ -32,8 +33,6 @@ class DemoJob:
 
 
 def _attempt_one(job: DemoJob) -> tuple[int, DemoAttempt]:
-    from bpns.registry import make_environment
-
     env = _ENV_CACHE.get(job.env_name) or _ENV_CACHE.setdefault(
         job.env_name, make_environment(job.env_name)
     )

@@ -8,9 +8,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from bpns.atomic import atomic_path
 from bpns.environment import Environment
 from bpns.evaluation import EvalReport, TaskOutcome, save_plans
 from bpns.failures import MEANING
+from bpns.pools import make_pool
+from bpns.registry import make_environment
+from bpns.video import render_video
 
 
 def solved_line(report: EvalReport) -> str:
@@ -27,8 +31,6 @@ def solved_line(report: EvalReport) -> str:
 def write_results(out: Path, reports: Sequence[EvalReport], table: str) -> None:
     """results.json (every report), results.md (``table``) and one plans file per
     approach in ``out`` (created if missing), each written atomically."""
-    from bpns.atomic import atomic_path
-
     out.mkdir(parents=True, exist_ok=True)
     with atomic_path(out / "results.json") as tmp:
         tmp.write_text(json.dumps([r.to_json() for r in reports], indent=2, allow_nan=False) + "\n")
@@ -118,8 +120,6 @@ def render_longest_solved(
     """Re-simulate :func:`longest_solved` from its task's initial state and render it to
     ``video`` with a PNG of its end; None when nothing was solved. Raises
     ``bpns.video.VideoError`` when rendering fails."""
-    from bpns.pools import make_pool
-
     outcome = longest_solved(report)
     if outcome is None:
         return None
@@ -137,9 +137,6 @@ def _render_task(
     env_name: str, index: int, seed: int, train: bool, actions, video: Path, png: Path
 ) -> int:
     """Re-simulate ``actions`` from task ``index`` of the seeded stream and render them."""
-    from bpns.registry import make_environment
-    from bpns.video import render_video
-
     env = make_environment(env_name)
     task = env.task(index, seed, train)
     states = [task.init]

@@ -298,6 +298,18 @@ class Skill:
 
 
 @dataclass(frozen=True)
+class GivenSkill:
+    """A skill supplied by the environment (``bpns.learning.given``: how learning keeps
+    it). ``signature`` names its parameters (in the order its policy and sampler take
+    objects) and the effects that identify it."""
+
+    name: str
+    signature: STRIPSOperator
+    policy: SubgoalPolicy
+    sampler: SubgoalSampler
+
+
+@dataclass(frozen=True)
 class Task:
     """<objects, initial state, goal, horizon>; objects are those of ``init``."""
 

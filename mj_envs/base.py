@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from bpns.environment import Capabilities
 from bpns.structs import GroundAtom, Object, Predicate, SimState, State, Task, Type
 from ik import ControllerConfig
 from mj_envs.render import render_states
@@ -48,10 +49,8 @@ class MujocoEnv(abc.ABC):
     # Segmentation merges contact changes closer than this (bpns.learning.segmentation):
     # at 20 Hz a release or touch-down settles within three control steps.
     contact_settle_steps: int = 4
-    # DART noise of the scripted demonstrations (bpns.demo_attempts.ActionNoise): the
-    # executed action is the commanded one times (1 + scale * N(0, 1)) per dimension,
-    # and the commands are the labels. 0: plain demonstrations; domains opt in.
-    demo_noise: float = 0.0
+    # Defaults and skills beyond the required protocol (bpns.environment.Capabilities).
+    capabilities: Capabilities = Capabilities()
 
     # -- what a domain declares -----------------------------------------------------
     @property

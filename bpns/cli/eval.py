@@ -96,8 +96,9 @@ def run(args: argparse.Namespace) -> int:
         env, _ = learned_in(args.skills)  # the environment the skills record
     else:
         env = env_by_name(args.env)
-    if any(a.skills is SkillSource.ORACLE for a in approaches) and not hasattr(
-        env, "oracle_skills"
+    if (
+        any(a.skills is SkillSource.ORACLE for a in approaches)
+        and not env.capabilities.has_oracle_skills
     ):
         raise UserError(f"environment {env.name!r} declares no oracle skills")
     try:

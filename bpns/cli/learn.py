@@ -77,7 +77,7 @@ def configure(p: argparse.ArgumentParser) -> None:
         "--settle-steps",
         type=positive,
         help="contact changes closer than this are one event "
-        "(default: the environment's contact_settle_steps, else 1)",
+        "(default: the environment's contact_settle_steps)",
     )
     p.add_argument(
         "--index-names",

@@ -77,8 +77,13 @@ class SeedResult:
 
 
 def _median_sim_ratio(tasks: Iterable[dict[str, Any]]) -> float | None:
-    """From the per-task records (so older cells have it too)."""
-    ratios = [t["sim_steps"] / t["num_actions"] for t in tasks if t["solved"] and t["num_actions"]]
+    """From the per-task records (so older cells have it too); records without step
+    counts are left out."""
+    ratios = [
+        t["sim_steps"] / t["num_actions"]
+        for t in tasks
+        if t["solved"] and t.get("num_actions") and "sim_steps" in t
+    ]
     return statistics.median(ratios) if ratios else None
 
 

@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from bpns.learning.nets import check_layers
+
 MAX_INDEX_BYTES = 1 << 22
 MAX_INDEX_DEPTH = 8  # a valid index nests 5 deep (skills/entry/atoms/atom/args)
 MAX_NPZ_BYTES = 1 << 28
@@ -324,13 +326,7 @@ def check_network(
     length, positive input std, an ordered input box and finite numbers throughout."""
     ws, bs = params.weights, params.biases
     _require(0 < len(ws) <= MAX_LAYERS, f"{where}: {len(ws)} layers")
-    width = input_dim
-    for k, (w, b) in enumerate(zip(ws, bs, strict=True)):
-        _require(
-            w.ndim == 2 and w.shape[0] == width and w.shape[1] >= 1 and b.shape == (w.shape[1],),
-            f"{where}: layer {k} has shapes {w.shape}, {b.shape}; expected ({width}, n), (n,)",
-        )
-        width = w.shape[1]
+    width = check_layers(params.layers, input_dim, where)
     _require(raw_output_dim(width), f"{where}: {width} outputs do not fit the network's role")
     for name in ("input_mean", "input_std", "input_low", "input_high"):
         a = getattr(params, name)

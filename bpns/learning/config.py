@@ -11,6 +11,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from bpns.environment import Environment
 
 
 @dataclass(frozen=True)
@@ -122,11 +126,11 @@ class LearningConfig:
             raise ValueError(f"change_tolerance must be >= 0, got {self.change_tolerance}")
 
 
-def learning_config_for(env: object, **overrides: object) -> LearningConfig:
+def learning_config_for(env: Environment, **overrides: object) -> LearningConfig:
     """The environment's declared learning defaults with ``overrides`` (those not None)
-    on top: ``settle_steps`` from its ``contact_settle_steps``, then its optional
-    ``learning_defaults`` mapping of field names (e.g. ``{"near_goal_scale": 0.01}``)."""
-    fields: dict[str, object] = {"settle_steps": int(getattr(env, "contact_settle_steps", 1))}
-    fields.update(dict(getattr(env, "learning_defaults", {}) or {}))
+    on top: ``settle_steps`` from its ``contact_settle_steps``, then its
+    ``capabilities.learning_defaults`` (e.g. ``{"near_goal_scale": 0.01}``)."""
+    fields: dict[str, object] = {"settle_steps": int(env.contact_settle_steps)}
+    fields.update(env.capabilities.learning_defaults)
     fields.update({k: v for k, v in overrides.items() if v is not None})
     return LearningConfig(**fields)  # type: ignore[arg-type]
