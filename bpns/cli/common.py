@@ -158,6 +158,7 @@ def report_evaluation(env, reports, out: Path | None, video: Path | None, seed: 
 def evaluate_approaches(
     env,
     names,
+    *,
     skills_dir: Path | None,
     learned,
     base_planning,

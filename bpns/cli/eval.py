@@ -115,15 +115,15 @@ def run(args: argparse.Namespace) -> int:
     reports = evaluate_approaches(
         env,
         names,
-        args.skills,
-        learned,
-        base,
-        args.tasks,
-        args.seed,
-        args.planner_seed,
-        args.train,
-        not args.no_validate,
-        workers,
+        skills_dir=args.skills,
+        learned=learned,
+        base_planning=base,
+        num_tasks=args.tasks,
+        task_seed=args.seed,
+        planner_seed=args.planner_seed,
+        train=args.train,
+        validate=not args.no_validate,
+        workers=workers,
     )
     report_evaluation(env, reports, args.out, args.video, args.seed, args.train)
     if args.explain:
