@@ -10,10 +10,12 @@ traceback.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 from types import ModuleType
 
+from bpns.atomic import storage_problem
 from bpns.cli import check_env, demos, experiment, learn, render, replay, run, skills
 from bpns.cli import eval as eval_
 from bpns.cli.common import UserError
@@ -48,11 +50,33 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(COMMANDS[args.command].run(args) or 0)
     except UserError as err:
-        print(f"bpns: error: {err}", file=sys.stderr)
-        return 2
+        return _error(str(err))
+    except BrokenPipeError:  # e.g. `bpns skills show DIR | head` stopped reading
+        return _reader_gone()
+    except OSError as err:  # a full disk or read-only filesystem while writing
+        problem = storage_problem(err)
+        if problem is None:
+            raise
+        return _error(problem)
     except KeyboardInterrupt:
         print("bpns: interrupted", file=sys.stderr)
         return 130
+
+
+def _error(message: str) -> int:
+    print(f"bpns: error: {message}", file=sys.stderr)
+    return 2
+
+
+def _reader_gone() -> int:
+    """stdout's reader closed the pipe: stop quietly, as a shell tool killed by SIGPIPE
+    would (exit 141), and keep Python's exit-time flush from raising again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # stdout is no file (captured)
+        pass
+    return 141
 
 
 __all__ = ["COMMANDS", "build_parser", "main"]

@@ -13,7 +13,7 @@ from bpns.cli.common import (
     print_lines,
     progress,
 )
-from bpns.cli.paths import capped_to_cores, check_output_file
+from bpns.cli.paths import capped_to_cores, check_demos_fit, check_output_file, writing
 
 HELP = "collect demonstrations with the scripted oracle"
 
@@ -37,7 +37,11 @@ def run(args: argparse.Namespace) -> int:
 
     env = env_by_name(args.env)
     check_output_file(args.out, "--out", args.overwrite)
+    check_demos_fit(env, args.num, args.seed, args.out, "--out")
     workers = capped_to_cores(args.workers, "--workers")
-    written = collect_demos(env, args.num, args.seed, args.out, workers, progress, debug=args.debug)
+    with writing(args.out):
+        written = collect_demos(
+            env, args.num, args.seed, args.out, workers, progress, debug=args.debug
+        )
     print_lines(written)
     return 0 if written.num_written else 1

@@ -83,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
 
     names = list(dict.fromkeys(args.approach))
     approaches = [get_approach(a) for a in names]
-    check_eval_outputs(args.out, args.video, names, args.overwrite)
+    check_eval_outputs(args.out, args.video, names, args.overwrite, args.skills)
     workers = capped_to_cores(args.workers, "--workers")
     learned = None
     if any(a.skills is SkillSource.LEARNED for a in approaches):

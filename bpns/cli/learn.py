@@ -18,7 +18,7 @@ from bpns.cli.common import (
     stage_reporter,
     tolerance_or_off,
 )
-from bpns.cli.paths import capped_to_cores, check_skills_dir
+from bpns.cli.paths import capped_to_cores, check_skills_dir, writing
 
 if TYPE_CHECKING:
     from bpns.learning.baselines import BaselinesConfig
@@ -139,17 +139,18 @@ def run(args: argparse.Namespace) -> int:
             },
         )
     try:
-        learned = learn_to_directory(
-            env,
-            args.demos,
-            args.out,
-            config,
-            args.limit,
-            threads,
-            progress,
-            stage_reporter(),
-            baselines=_baselines_config(args) if args.baselines else None,
-        )
+        with writing(args.out):
+            learned = learn_to_directory(
+                env,
+                args.demos,
+                args.out,
+                config,
+                args.limit,
+                threads,
+                progress,
+                stage_reporter(),
+                baselines=_baselines_config(args) if args.baselines else None,
+            )
     except (DatasetError, CannotLearnError) as err:
         raise UserError(str(err)) from None
     print_lines(learned)

@@ -23,10 +23,12 @@ from bpns.cli.common import (
 )
 from bpns.cli.paths import (
     capped_to_cores,
+    check_demos_fit,
     check_eval_outputs,
     check_output_dir,
     check_output_file,
     check_skills_dir,
+    writing,
 )
 
 HELP = "the whole pipeline: demos -> learn -> eval -> table -> video"
@@ -95,10 +97,7 @@ def _baselines_config(stages: tuple[str, ...], steps: int | None):
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpns.learning import describe
-    from bpns.learning.config import learning_config_for
-    from bpns.planning.config import planning_config_for
-    from bpns.workflow import baselines_needed, check_replay, collect_demos, learn_to_directory
+    from bpns.workflow import baselines_needed
 
     env = env_by_name(args.env)
     out: Path = args.out or Path("outputs") / env.name
@@ -109,15 +108,28 @@ def run(args: argparse.Namespace) -> int:
     stages = baselines_needed(entries)
     if args.baseline_steps is not None and not stages:
         raise UserError(
-            "--baseline-steps applies to the baselines, and none of "
-            f"{', '.join(names)} uses one"
+            f"--baseline-steps applies to the baselines, and none of {', '.join(names)} uses one"
         )
     check_output_dir(out, "--out")
     check_output_file(demos_path, "--out", args.overwrite)
     check_skills_dir(skills_dir, "--out", args.overwrite)
     check_eval_outputs(out / "eval", video, names, args.overwrite)
+    check_demos_fit(env, args.demos, args.seed, demos_path, "--out")
     workers = capped_to_cores(args.workers, "--workers")
-    out.mkdir(parents=True, exist_ok=True)
+    with writing(out):
+        out.mkdir(parents=True, exist_ok=True)
+        return _pipeline(args, env, entries, stages, out, workers)
+
+
+def _pipeline(args, env, entries, stages: tuple[str, ...], out: Path, workers: int) -> int:
+    from bpns.learning import describe
+    from bpns.learning.config import learning_config_for
+    from bpns.planning.config import planning_config_for
+    from bpns.workflow import check_replay, collect_demos, learn_to_directory
+
+    names = [e.name for e in entries]
+    demos_path, skills_dir = out / "demos.h5", out / "skills"
+    video = out / "eval_solved.mp4"
     t0 = time.perf_counter()
 
     _step(f"demos: {args.demos} demonstrations of {env.name}")
