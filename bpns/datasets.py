@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
@@ -135,10 +136,24 @@ def _names(data: h5py.Group, path: str | os.PathLike) -> list[str]:
         raise DatasetError(f"{path}: {err}") from None
 
 
+def not_a_demo_file(path: Path) -> str | None:
+    """Why ``path`` cannot be a demonstration file without opening it (missing, a
+    directory, a FIFO or device: reading one could block or never end), else None."""
+    if not path.exists():
+        return f"{path}: no such demonstration file"
+    mode = path.stat().st_mode
+    if stat.S_ISDIR(mode):
+        return f"{path}: is a directory, not a demonstration file"
+    if not stat.S_ISREG(mode):
+        return f"{path}: not a regular file (a FIFO, socket or device), not a demonstration file"
+    return None
+
+
 def _open(path: str | os.PathLike) -> h5py.File:
     p = Path(path)
-    if not p.is_file():
-        raise DatasetError(f"{p}: no such demonstration file")
+    problem = not_a_demo_file(p)
+    if problem is not None:
+        raise DatasetError(problem)
     try:
         return h5py.File(p, "r")
     except OSError as err:

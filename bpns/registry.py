@@ -8,16 +8,37 @@ points are the single source of environment names (CLI, workers, Gymnasium ids).
 
 from __future__ import annotations
 
-from importlib.metadata import entry_points
+from collections.abc import Callable
+from importlib.metadata import EntryPoint, entry_points
+from typing import TypeVar
 
 from bpns.environment import Environment
 
 GROUP = "bpns.environments"
+T = TypeVar("T")
 
 
 class UnknownEnvironmentError(KeyError):
     def __str__(self) -> str:
         return str(self.args[0])
+
+
+class PluginError(RuntimeError):
+    """An installed entry point (an environment or approach plugin) that fails to load or
+    to build: its import raised, it names nothing, or constructing it raised."""
+
+
+def load_plugin(ep: EntryPoint, what: str, make: Callable[[object], T]) -> T:
+    """``make(ep.load())``; any exception raised by the plugin's code becomes a
+    :class:`PluginError` naming the plugin, its entry point and the error (one line)."""
+    try:
+        return make(ep.load())
+    except Exception as err:  # noqa: BLE001  plugin code may raise anything
+        detail = str(err).strip().splitlines()[0] if str(err).strip() else ""
+        raise PluginError(
+            f"{what} plugin {ep.name!r} (entry point {ep.name} = {ep.value}) cannot be "
+            f"loaded: {type(err).__name__}" + (f": {detail}" if detail else "")
+        ) from err
 
 
 def environment_names() -> list[str]:
@@ -29,4 +50,4 @@ def make_environment(name: str) -> Environment:
     if not matches:
         known = ", ".join(environment_names()) or "none installed"
         raise UnknownEnvironmentError(f"unknown environment {name!r}; known: {known}")
-    return matches[0].load()()
+    return load_plugin(matches[0], "environment", lambda factory: factory())

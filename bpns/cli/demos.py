@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from bpns.cli.common import (
     default_workers,
     env_by_name,
     nonnegative,
+    path_arg,
     positive,
     print_lines,
     progress,
@@ -22,7 +22,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--env", required=True, help="environment name (e.g. cover)")
     p.add_argument("-n", "--num", type=positive, default=10, help="number of train tasks")
     p.add_argument("--seed", type=nonnegative, default=0)
-    p.add_argument("--out", required=True, type=Path, help="output .h5 file")
+    p.add_argument("--out", required=True, type=path_arg, help="output .h5 file")
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     p.add_argument("--workers", type=positive, default=default_workers())
     p.add_argument(

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bpns.cli.common import (
@@ -12,6 +11,7 @@ from bpns.cli.common import (
     file_env,
     nonnegative,
     nonnegative_float,
+    path_arg,
     positive,
     print_lines,
     progress,
@@ -27,8 +27,8 @@ HELP = "learn neuro-symbolic skills from demonstrations"
 
 
 def configure(p: argparse.ArgumentParser) -> None:
-    p.add_argument("demos", type=Path, help="demonstration .h5 file (from `bpns demos`)")
-    p.add_argument("--out", required=True, type=Path, help="skills directory to write")
+    p.add_argument("demos", type=path_arg, help="demonstration .h5 file (from `bpns demos`)")
+    p.add_argument("--out", required=True, type=path_arg, help="skills directory to write")
     p.add_argument("--limit", type=positive, help="learn from the first N demos only")
     p.add_argument("--seed", type=nonnegative, default=0, help="seed of all network training")
     p.add_argument(

@@ -39,20 +39,22 @@ def _inside(path: Path, directory: Path) -> bool:
         return False
 
 
-def _check_writable_place(path: Path, flag: str) -> None:
+def _check_writable_place(path: Path, flag: str, shown: Path | None = None) -> None:
     """The deepest existing ancestor of ``path`` must be a directory we can create
-    files in (parents that do not exist yet are created when writing)."""
+    files in (parents that do not exist yet are created when writing). Messages name
+    ``shown`` (default: ``path``)."""
+    shown = path if shown is None else shown
     ancestor = path.parent
     while not ancestor.exists() and ancestor != ancestor.parent:
         if ancestor.is_symlink():  # a dangling link
-            raise UserError(f"{flag} {path}: {ancestor} is a broken symbolic link")
+            raise UserError(f"{flag} {shown}: {ancestor} is a broken symbolic link")
         ancestor = ancestor.parent
     if not ancestor.is_dir():
-        raise UserError(f"{flag} {path}: {ancestor} is not a directory")
+        raise UserError(f"{flag} {shown}: {ancestor} is not a directory")
     try:
         fd, probe = tempfile.mkstemp(prefix=".bpns-write-check-", dir=ancestor)
     except OSError as err:
-        raise UserError(f"{flag} {path}: cannot write in {ancestor} ({err.strerror})") from None
+        raise UserError(f"{flag} {shown}: cannot write in {ancestor} ({err.strerror})") from None
     os.close(fd)
     os.unlink(probe)
 
@@ -105,7 +107,7 @@ def check_output_dir(path: Path, flag: str) -> None:
         raise UserError(f"{flag} {path}: is a broken symbolic link")
     if path.exists() and not path.is_dir():
         raise UserError(f"{flag} {path}: exists and is not a directory")
-    _check_writable_place(path / "x", flag)
+    _check_writable_place(path / "x", flag, shown=path)
 
 
 @contextlib.contextmanager

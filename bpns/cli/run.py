@@ -9,11 +9,13 @@ from pathlib import Path
 
 from bpns.cli.common import (
     UserError,
+    approach_by_name,
     default_workers,
     env_by_name,
     evaluate_approaches,
     learned_in,
     nonnegative,
+    path_arg,
     positive,
     positive_float,
     print_lines,
@@ -43,7 +45,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tasks", type=positive, default=10, help="number of eval tasks")
     p.add_argument("--seed", type=nonnegative, default=0)
     p.add_argument("--timeout", type=positive_float, default=60.0, help="seconds per task")
-    p.add_argument("--out", type=Path, help="output directory (default: outputs/<env>)")
+    p.add_argument("--out", type=path_arg, help="output directory (default: outputs/<env>)")
     p.add_argument("--workers", type=positive, default=default_workers())
     p.add_argument(
         "--approach",
@@ -70,16 +72,13 @@ def approaches_to_run(env, asked: list[str] | None) -> list:
     """The registry entries of the approaches ``asked`` (default: bpns, and oracle where
     ``env`` has hand-written skills), each checked to be able to run on ``env``: an
     impossible combination is refused before any work."""
-    from bpns.approaches import SkillSource, get_approach
+    from bpns.approaches import SkillSource
 
     if asked is None:
         asked = ["bpns", "oracle"] if hasattr(env, "oracle_skills") else ["bpns"]
     entries = []
     for name in dict.fromkeys(asked):
-        try:
-            entry = get_approach(name)
-        except Exception as err:  # noqa: BLE001  a plugin that fails to load: named
-            raise UserError(f"--approach {name}: cannot load it: {err}") from None
+        entry = approach_by_name(name)
         if entry.skills is SkillSource.ORACLE and not hasattr(env, "oracle_skills"):
             raise UserError(
                 f"--approach {name}: plans with hand-written skills, and environment "
