@@ -10,16 +10,16 @@ so the memory of a learning cell goes back to the system before the next cell st
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import ctypes.util
 import itertools
 import multiprocessing
+import multiprocessing.connection
 import os
 import queue
 import signal
 import socket
 import sys
 import tempfile
+import threading
 from collections.abc import Iterator
 from typing import Any, Protocol
 
@@ -38,16 +38,21 @@ class Backend(Protocol):
     def close(self, cancel: bool) -> None: ...
 
 
-def _die_with_parent() -> None:
-    """Pool initializer: a worker is terminated when its parent (the forkserver, which
-    exits when the scheduler dies) goes, so a killed sweep leaves no cell running."""
-    parent = os.getppid()
-    if sys.platform.startswith("linux"):
-        with contextlib.suppress(OSError, AttributeError):
-            libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-            libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
-    if os.getppid() != parent:  # the parent died before prctl took effect
-        os._exit(1)
+def _die_with_scheduler() -> None:
+    """Pool initializer: a worker ends when the scheduler that started it dies (killed,
+    say), so a killed sweep leaves no cell running. The worker's parent is the
+    forkserver, which outlives the scheduler while workers run; the scheduler's end is
+    seen on the sentinel pipe multiprocessing gives each child."""
+    parent = multiprocessing.parent_process()
+    if parent is None:
+        return
+
+    def watch() -> None:
+        multiprocessing.connection.wait([parent.sentinel])
+        os.kill(os.getpid(), signal.SIGTERM)
+        os._exit(1)  # if SIGTERM is handled or ignored
+
+    threading.Thread(target=watch, name="bpns-scheduler-watch", daemon=True).start()
 
 
 class PoolBackend:
@@ -57,7 +62,9 @@ class PoolBackend:
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
         ctx = multiprocessing.get_context(start_method)
-        self._pool = ctx.Pool(processes=workers, maxtasksperchild=1, initializer=_die_with_parent)
+        self._pool = ctx.Pool(
+            processes=workers, maxtasksperchild=1, initializer=_die_with_scheduler
+        )
         self._finished: queue.Queue[tuple[int, CellOutcome | BaseException]] = queue.Queue()
         self._tokens = itertools.count()
         self._pending = 0
