@@ -19,7 +19,7 @@ from bpns.cli.common import (
     report_evaluation,
     tolerance_or_off,
 )
-from bpns.cli.paths import capped_to_cores, check_eval_outputs
+from bpns.cli.paths import capped_to_cores, check_eval_outputs, writing
 
 HELP = "solve held-out tasks by bilevel planning; results JSON + markdown table"
 
@@ -126,7 +126,8 @@ def run(args: argparse.Namespace) -> int:
         validate=not args.no_validate,
         workers=workers,
     )
-    report_evaluation(env, reports, args.out, args.video, args.seed, args.train)
+    with writing(args.out or args.video):
+        report_evaluation(env, reports, args.out, args.video, args.seed, args.train)
     if args.explain:
         from bpns.reporting import explain_lines
 

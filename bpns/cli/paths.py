@@ -111,7 +111,7 @@ def check_output_dir(path: Path, flag: str) -> None:
 
 
 @contextlib.contextmanager
-def writing(path: Path) -> Iterator[None]:
+def writing(path: Path | None) -> Iterator[None]:
     """A full disk or read-only filesystem while writing ``path`` becomes one line
     naming it (the write is atomic: nothing was replaced)."""
     try:

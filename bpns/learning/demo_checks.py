@@ -38,7 +38,8 @@ def check_demonstrations(demos: Sequence[Demonstration]) -> None:
             step = _first_bad_row(rows)
             if step is not None:
                 raise DemonstrationError(
-                    f"demonstration {i}: features of {obj.name} at step {step} {_why(rows[step])}"
+                    f"demonstration {i}: features of {obj.name} at step {step} "
+                    + _why(rows[step]).replace("holds", "hold", 1)
                 )
 
 
