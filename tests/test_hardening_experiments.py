@@ -16,29 +16,17 @@ import time
 
 import pytest
 
-from bpns.cli import main
 from bpns.experiments import backends, work
 from bpns.experiments.backends import BackendError, check_reachable, host_and_port
 from bpns.experiments.cells import DEMOS
 from bpns.experiments.presets import SweepConfig
 from bpns.experiments.store import FORMAT, CellStore, CellStoreError
 from bpns.experiments.sweep import run_sweep, sweep_cells
+from tests.cli_probe import error_line
 
 SWEEP = ["experiment", "--env", "cover", "--demos", "2", "--seeds", "0", "--tasks", "1"]
 ORACLE = ["experiment", "--env", "cover", "--approach", "oracle", "--seeds", "0", "--tasks", "1"]
 CONFIG = SweepConfig("tiny", ("cover",), (2,), (0,), ("bpns",), 1, 10.0)
-
-
-def _error(argv, capsys) -> str:
-    try:
-        code = main(argv)
-    except SystemExit as exit_:
-        code = exit_.code
-    err = capsys.readouterr().err.strip()
-    assert code == 2, err
-    (line,) = err.splitlines()
-    assert line.startswith("bpns: error: ")
-    return line
 
 
 def _closed_port() -> int:
@@ -57,7 +45,7 @@ def _closed_port() -> int:
 )
 def test_a_sweep_directory_that_cannot_be_one_is_refused_first(tmp_path, capsys, out, message):
     (tmp_path / "file").write_text("mine")
-    line = _error([*SWEEP, "--out", out.format(w=tmp_path)], capsys)
+    line = error_line([*SWEEP, "--out", out.format(w=tmp_path)], capsys)
     assert line.startswith(f"bpns: error: {message.format(w=tmp_path)}")
     assert [p.name for p in tmp_path.iterdir()] == ["file"]
     assert (tmp_path / "file").read_text() == "mine"
@@ -65,7 +53,7 @@ def test_a_sweep_directory_that_cannot_be_one_is_refused_first(tmp_path, capsys,
 
 def test_report_only_on_a_missing_sweep_creates_nothing(tmp_path, capsys):
     out = tmp_path / "nothing-here"
-    line = _error([*SWEEP, "--out", str(out), "--report-only"], capsys)
+    line = error_line([*SWEEP, "--out", str(out), "--report-only"], capsys)
     assert line == (
         f"bpns: error: --report-only: {out} holds no sweep (no cells/ in it); run the sweep first"
     )
@@ -86,7 +74,7 @@ def test_an_incomplete_cell_file_is_one_line_naming_it(tmp_path, capsys, cover_e
     path = CellStore(tmp_path).record_path(cell.key)
     path.parent.mkdir(parents=True)
     path.write_text(json.dumps(record))
-    line = _error([*ORACLE, "--timeout", "60", "--out", str(tmp_path), "--dry-run"], capsys)
+    line = error_line([*ORACLE, "--timeout", "60", "--out", str(tmp_path), "--dry-run"], capsys)
     assert line.startswith(f"bpns: error: {path}: incomplete cell file (no ")
     assert line.endswith("); delete it to redo the cell")
 
@@ -163,7 +151,7 @@ def test_an_unreachable_ray_cluster_is_refused_before_any_work(tmp_path, capsys)
     port = _closed_port()
     out = tmp_path / "s"
     argv = [*SWEEP, "--out", str(out), "--backend", "ray", "--ray-address", f"127.0.0.1:{port}"]
-    line = _error(argv, capsys)
+    line = error_line(argv, capsys)
     assert line == f"bpns: error: cannot reach Ray at '127.0.0.1:{port}': Connection refused"
     assert not out.exists()
 

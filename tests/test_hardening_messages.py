@@ -12,6 +12,7 @@ import pytest
 
 from bpns.cli import COMMANDS, main
 from bpns.cli.common import UserError
+from tests.cli_probe import error_line
 
 
 @pytest.fixture(scope="module")
@@ -23,20 +24,10 @@ def demo_file(tmp_path_factory, cover_env, cover_demos):
     return path
 
 
-def _error(argv, capsys) -> str:
-    try:
-        code = main(argv)
-    except SystemExit as exit_:
-        code = exit_.code
-    err = capsys.readouterr().err.strip()
-    assert code == 2, err
-    return err.splitlines()[-1]
-
-
 def test_a_frame_beyond_the_scenes_framebuffer_is_named_so(tmp_path, demo_file, capsys):
     out = tmp_path / "v.mp4"
     argv = ["render", str(demo_file), "--out", str(out), "--width", "100000", "--height", "48"]
-    line = _error(argv, capsys)
+    line = error_line(argv, capsys)
     assert line.startswith("bpns: error: 100000 x 48 pixels exceed this scene's offscreen")
     assert "OSMesa" not in line
     assert list(tmp_path.iterdir()) == []
@@ -59,7 +50,7 @@ def test_an_input_that_is_no_regular_file_is_named_for_what_it_is(
     argv = {"learn": ["learn", str(path), "--out", str(tmp_path / "sk")]}.get(
         command, [command, str(path)]
     )
-    line = _error(argv, capsys)  # returns at once: a FIFO is never opened
+    line = error_line(argv, capsys)  # returns at once: a FIFO is never opened
     assert line.startswith(f"bpns: error: {path}: {what}")
 
 
@@ -74,7 +65,7 @@ def test_an_input_that_is_no_regular_file_is_named_for_what_it_is(
     ],
 )
 def test_an_empty_path_is_refused_not_read_as_the_current_directory(argv, capsys):
-    line = _error(argv, capsys)
+    line = error_line(argv, capsys, usage=True)
     assert line.endswith("expected a path, got ''") or line.endswith("expected a path, got '  '")
 
 

@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from bpns.cli import main
+from tests.cli_probe import run_cli
 
 PLUGINS = {
     "gone": "no_such_module_h24:Env",
@@ -36,14 +36,6 @@ def broken_plugins(tmp_path, monkeypatch):
     return tmp_path
 
 
-def _run(argv, capsys) -> tuple[int, str]:
-    try:
-        code = main(argv)
-    except SystemExit as exit_:
-        code = exit_.code
-    return code, capsys.readouterr().err
-
-
 @pytest.mark.parametrize(
     "name, error",
     [
@@ -66,7 +58,7 @@ def test_a_broken_environment_plugin_is_one_error_line_naming_it(
     broken_plugins, tmp_path, capsys, name, error, command
 ):
     argv = [a.format(name=name, w=tmp_path / "w") for a in command]
-    code, err = _run(argv, capsys)
+    code, err = run_cli(argv, capsys)
     assert code == 2
     (line,) = err.strip().splitlines()
     assert line.startswith(
@@ -77,7 +69,7 @@ def test_a_broken_environment_plugin_is_one_error_line_naming_it(
 
 
 def test_a_broken_approach_plugin_is_one_error_line_naming_it(broken_plugins, capsys):
-    code, err = _run(["eval", "--env", "cover", "--approach", "broken-approach"], capsys)
+    code, err = run_cli(["eval", "--env", "cover", "--approach", "broken-approach"], capsys)
     assert code == 2
     assert err.strip() == (
         "bpns: error: approach plugin 'broken-approach' (entry point broken-approach = "

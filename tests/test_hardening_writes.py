@@ -17,6 +17,7 @@ import pytest
 
 from bpns import atomic, video
 from bpns.cli import main
+from tests.cli_probe import error_line
 
 
 @pytest.fixture(scope="module")
@@ -35,12 +36,6 @@ def skills_dir(tmp_path_factory, demo_file):
     return out
 
 
-def _one_error(capsys) -> str:
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and err.startswith("bpns: error: "), err
-    return err
-
-
 def _no_space(*args, **kwargs):
     raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
@@ -50,11 +45,8 @@ def test_demos_on_a_full_disk_is_one_line_and_keeps_the_old_file(tmp_path, monke
     out = tmp_path / "d.h5"
     out.write_bytes(b"an earlier file")
     monkeypatch.setattr(h5py.Group, "create_dataset", _no_space)
-    code = main(
-        ["demos", "--env", "cover", "-n", "1", "--workers", "1", "--out", str(out), "--overwrite"]
-    )
-    assert code == 2
-    assert _one_error(capsys) == (
+    argv = ["demos", "--env", "cover", "-n", "1", "--workers", "1", "--out", str(out)]
+    assert error_line([*argv, "--overwrite"], capsys) == (
         f"bpns: error: cannot write {out}: No space left on device (nothing was replaced; "
         "free space or pick another place and run the command again)"
     )
@@ -72,17 +64,17 @@ def test_learn_on_a_full_disk_is_one_line_and_keeps_the_old_skills(
     before = sorted(p.name for p in out.iterdir())
     monkeypatch.setattr(np, "savez_compressed", _no_space)
     monkeypatch.setattr(np, "savez", _no_space)
-    assert main(["learn", str(demo_file), "--out", str(out), "--overwrite"]) == 2
-    assert f"cannot write {out}: No space left on device" in _one_error(capsys)
+    line = error_line(["learn", str(demo_file), "--out", str(out), "--overwrite"], capsys)
+    assert f"cannot write {out}: No space left on device" in line
     assert sorted(p.name for p in out.iterdir()) == before
     assert [p.name for p in tmp_path.iterdir()] == ["sk"]
 
 
 def test_more_demos_than_the_disk_can_hold_are_refused_before_collecting(tmp_path, capsys):
     out = tmp_path / "d.h5"
-    code = main(["demos", "--env", "cover", "-n", "99999999999999999999999", "--out", str(out)])
-    assert code == 2
-    err = _one_error(capsys)
+    err = error_line(
+        ["demos", "--env", "cover", "-n", "99999999999999999999999", "--out", str(out)], capsys
+    )
     assert "99999999999999999999999 demonstrations need at least" in err and "free" in err
     assert not out.exists()
 
@@ -154,11 +146,8 @@ def test_a_complete_video_is_written_and_reads_back(tmp_path):
 def test_eval_never_writes_its_video_or_results_into_the_skills_it_reads(skills_dir, capsys):
     index = (skills_dir / "skills.json").read_bytes()
     for flag, target in (("--video", skills_dir / "skills.json"), ("--out", skills_dir)):
-        code = main(
-            ["eval", "--skills", str(skills_dir), flag, str(target), "--overwrite", "-n", "1"]
-        )
-        assert code == 2
-        assert "this command's input; write it elsewhere" in _one_error(capsys)
+        argv = ["eval", "--skills", str(skills_dir), flag, str(target), "--overwrite", "-n", "1"]
+        assert "this command's input; write it elsewhere" in error_line(argv, capsys)
     assert (skills_dir / "skills.json").read_bytes() == index
 
 
