@@ -187,13 +187,12 @@ class RayBackend:
         self._ray = ray
         self._owns_ray = not ray.is_initialized()
         if self._owns_ray:
-            if address is not None:
-                check_reachable(address, connect_timeout)
             try:
-                with _quiet_stderr():  # Ray's C++ core logs each failed retry there
-                    if address is None:
-                        ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False)
-                    else:
+                if address is None:  # starts Ray's processes, which inherit our stderr
+                    ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False)
+                else:
+                    check_reachable(address, connect_timeout)
+                    with _quiet_stderr():  # Ray's C++ core logs each failed retry there
                         ray.init(address=address, log_to_driver=False)
             except (ConnectionError, RuntimeError, ValueError) as err:
                 raise BackendError(f"cannot connect to Ray at {address!r}: {err}") from None
