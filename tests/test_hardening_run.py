@@ -29,6 +29,13 @@ def test_run_learns_exactly_the_baselines_its_approaches_use(approaches, stages)
     assert baselines_needed(get_approach(a) for a in approaches) == stages
 
 
+def test_a_plugin_needing_baselines_it_does_not_name_gets_them_all():
+    import dataclasses
+
+    plugin = dataclasses.replace(get_approach("gnn-bc"), name="mine", learned_stages=None)
+    assert baselines_needed([plugin]) == ("gnn_meta", "gnn_bc", "nosubgoal")
+
+
 def test_run_with_every_baseline_works_end_to_end(tmp_path, capsys):
     out = tmp_path / "r"
     argv = ["run", "--env", "cover", "--approach", *ALL, "--demos", "3", "--tasks", "1"]
