@@ -219,3 +219,19 @@ def _running(pid: int) -> bool:
             return f.read().rsplit(")", 1)[1].split()[0] != "Z"
     except OSError:
         return False
+
+
+def test_a_sweep_whose_demonstrations_cannot_fit_is_refused_before_work(
+    tmp_path, capsys, monkeypatch
+):
+    import shutil
+
+    from bpns.cli import paths
+
+    usage = shutil.disk_usage(tmp_path)
+    monkeypatch.setattr(paths.shutil, "disk_usage", lambda p: usage._replace(free=10_000))
+    out = tmp_path / "s"
+    line = error_line([*SWEEP, "--out", str(out)], capsys)
+    assert line.startswith(f"bpns: error: --out {out}: 2 demonstrations need at least ")
+    assert line.endswith("has 10 kB free")
+    assert not out.exists()

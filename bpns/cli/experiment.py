@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from bpns.cli.common import UserError, path_arg, whole_at_least
-from bpns.cli.paths import check_output_dir
+from bpns.cli.paths import check_free_space, check_output_dir
 from bpns.experiments.approach_info import approach_names
 from bpns.experiments.presets import PRESETS, SweepConfig, SweepConfigError
 
@@ -214,6 +214,8 @@ def run(args: argparse.Namespace) -> int:
         for cell in cells:
             print(f"  {'done' if cell.key in finished else 'todo'}  {cell.key}")
         return 0
+    if not args.report_only:
+        _check_demos_fit(cells, finished, envs, out)
     del envs  # the workers build their own; the scheduler needs them no more
     code = 0
     if not args.report_only:
@@ -242,6 +244,21 @@ def run(args: argparse.Namespace) -> int:
         print(markdown_table(rows), end="")
     print("wrote " + ", ".join(str(p) for p in written))
     return code
+
+
+def _check_demos_fit(cells, finished, envs, out: Path) -> None:
+    """Refuse a sweep whose demonstrations still to collect cannot fit on ``out``'s disk
+    (a lower bound per demonstration; see ``bpns.datasets.min_demo_bytes``)."""
+    from bpns.datasets import min_demo_bytes
+    from bpns.experiments.cells import DEMOS
+
+    todo = [c for c in cells if c.kind == DEMOS and c.key not in finished]
+    needed = sum(
+        (c.count or 0) * min_demo_bytes(envs[c.env], envs[c.env].task(0, c.seed, True))
+        for c in todo
+    )
+    count = sum(c.count or 0 for c in todo)
+    check_free_space(out, needed, "--out", f"{count} demonstrations")
 
 
 @contextlib.contextmanager

@@ -124,9 +124,9 @@ def writing(path: Path | None) -> Iterator[None]:
 
 
 def check_free_space(path: Path, needed: int, flag: str, what: str) -> None:
-    """Refuse before any work when the filesystem of ``path`` (or its deepest existing
-    ancestor) has fewer than ``needed`` bytes free."""
-    ancestor = path.parent
+    """Refuse before any work when the filesystem of ``path`` (a directory, or a file in
+    one; or their deepest existing ancestor) has fewer than ``needed`` bytes free."""
+    ancestor = path if path.is_dir() else path.parent
     while not ancestor.exists() and ancestor != ancestor.parent:
         ancestor = ancestor.parent
     try:
