@@ -61,6 +61,16 @@ def temporary_prefix(target: Path) -> str:
     return f".{target.name}.tmp-{os.getpid()}-{_host_tag()}-"
 
 
+_STARTED = time.time()  # (about) when this process started: when bpns was imported
+
+
+def _older_than_this_process(path: Path) -> bool:
+    try:
+        return path.lstat().st_mtime < _STARTED
+    except OSError:
+        return False
+
+
 def _alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -74,7 +84,9 @@ def _alive(pid: int) -> bool:
 def remove_stale_temporaries(target: str | os.PathLike) -> list[Path]:
     """Delete the temporaries of ``target`` left by writes whose process died on this
     host (each name carries its writer's pid and host); returns what was deleted.
-    Temporaries of running processes, or of other hosts, are left alone."""
+    Temporaries of running processes, or of other hosts, are left alone. A temporary
+    named before pids were (``.NAME.tmp-<random>``) goes if it is older than this
+    process: no write this process started made it."""
     target = Path(target)
     prefix, host = f".{target.name}.tmp-", _host_tag()
     removed: list[Path] = []
@@ -86,9 +98,10 @@ def remove_stale_temporaries(target: str | os.PathLike) -> list[Path]:
         if not entry.name.startswith(prefix):
             continue
         pid, _, rest = entry.name[len(prefix) :].partition("-")
-        if not pid.isdigit() or not rest.startswith(host + "-"):
-            continue
-        if int(pid) == os.getpid() or _alive(int(pid)):
+        if not (pid.isdigit() and len(rest) > 9 and rest[8] == "-"):  # the earlier naming
+            if not _older_than_this_process(entry):
+                continue
+        elif not rest.startswith(host + "-") or int(pid) == os.getpid() or _alive(int(pid)):
             continue
         if entry.is_dir() and not entry.is_symlink():
             shutil.rmtree(entry, ignore_errors=True)

@@ -182,12 +182,17 @@ def test_the_next_write_removes_temporaries_of_writers_that_died(tmp_path):
     running = tmp_path / f".results.json.tmp-1-{host}-def.json"  # pid 1 runs
     elsewhere = tmp_path / f".results.json.tmp-{_dead_pid()}-0000ffff-ghi.json"  # other host
     other = tmp_path / f".other.json.tmp-{_dead_pid()}-{host}-jkl.json"  # other target
-    for p in (dead, running, elsewhere, other):
+    old_style = tmp_path / ".results.json.tmp-k2j9x_q1"  # named before pids were
+    recent_old_style = tmp_path / ".results.json.tmp-a8bz0c3d"
+    for p in (dead, running, elsewhere, other, old_style, recent_old_style):
         p.write_text("partial")
+    long_ago = atomic._STARTED - 3600
+    os.utime(old_style, (long_ago, long_ago))  # older than this process: a crash's
     with atomic.atomic_path(target) as tmp:
         tmp.write_text("{}")
     left = {p.name for p in tmp_path.iterdir()}
-    assert left == {"results.json", running.name, elsewhere.name, other.name}
+    kept = {running.name, elsewhere.name, other.name, recent_old_style.name}
+    assert left == {"results.json", *kept}
 
 
 def test_saving_skills_removes_the_directory_a_killed_save_left(tmp_path, skills_dir):
