@@ -5,6 +5,8 @@ back ``(token, CellOutcome)`` pairs as cells finish, in completion order. A cell
 in a fresh worker process: the pool's workers start from a forkserver (not forked from
 the scheduler, which may hold a large environment) and each is replaced after one cell,
 so the memory of a learning cell goes back to the system before the next cell starts.
+A worker exits when the scheduler dies (:func:`bpns.pools.die_with`), so a killed sweep
+leaves no cell running.
 """
 
 from __future__ import annotations
@@ -12,18 +14,16 @@ from __future__ import annotations
 import contextlib
 import itertools
 import multiprocessing
-import multiprocessing.connection
 import os
 import queue
-import signal
 import socket
 import sys
 import tempfile
-import threading
 from collections.abc import Iterator
 from typing import Any, Protocol
 
 from bpns.experiments.work import CellJob, CellOutcome, run_cell_safely
+from bpns.pools import die_with
 
 
 class BackendError(RuntimeError):
@@ -38,23 +38,6 @@ class Backend(Protocol):
     def close(self, cancel: bool) -> None: ...
 
 
-def _die_with_scheduler() -> None:
-    """Pool initializer: a worker ends when the scheduler that started it dies (killed,
-    say), so a killed sweep leaves no cell running. The worker's parent is the
-    forkserver, which outlives the scheduler while workers run; the scheduler's end is
-    seen on the sentinel pipe multiprocessing gives each child."""
-    parent = multiprocessing.parent_process()
-    if parent is None:
-        return
-
-    def watch() -> None:
-        multiprocessing.connection.wait([parent.sentinel])
-        os.kill(os.getpid(), signal.SIGTERM)
-        os._exit(1)  # if SIGTERM is handled or ignored
-
-    threading.Thread(target=watch, name="bpns-scheduler-watch", daemon=True).start()
-
-
 class PoolBackend:
     """``workers`` cells at a time in local processes."""
 
@@ -63,7 +46,10 @@ class PoolBackend:
             raise ValueError(f"workers must be >= 1, got {workers}")
         ctx = multiprocessing.get_context(start_method)
         self._pool = ctx.Pool(
-            processes=workers, maxtasksperchild=1, initializer=_die_with_scheduler
+            processes=workers,
+            maxtasksperchild=1,
+            initializer=die_with,  # a killed sweep leaves no cell running
+            initargs=(os.getpid(),),
         )
         self._finished: queue.Queue[tuple[int, CellOutcome | BaseException]] = queue.Queue()
         self._tokens = itertools.count()
