@@ -5,17 +5,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from bpns.cli.common import UserError, file_env, nonnegative, positive
+from bpns.cli.common import UserError, file_env, nonnegative, path_arg, positive
 from bpns.cli.paths import check_output_file
 
 HELP = "render a demonstration to mp4 (and PNG)"
 
 
 def configure(p: argparse.ArgumentParser) -> None:
-    p.add_argument("file", type=Path, help="demonstration .h5 file")
+    p.add_argument("file", type=path_arg, help="demonstration .h5 file")
     p.add_argument("--demo", type=nonnegative, default=0, help="index of the demo to render")
-    p.add_argument("--out", type=Path, help="output .mp4 (default: demo_<i>.mp4)")
-    p.add_argument("--png", type=Path, help="also write a PNG snapshot of the last frame")
+    p.add_argument("--out", type=path_arg, help="output .mp4 (default: demo_<i>.mp4)")
+    p.add_argument("--png", type=path_arg, help="also write a PNG snapshot of the last frame")
     p.add_argument("--camera", default="overview")
     p.add_argument("--width", type=positive, default=640)
     p.add_argument("--height", type=positive, default=480)
