@@ -58,35 +58,34 @@ class DemoAttempt:
 
 
 class ActionNoise:
-    """DART-style noise injection (Laskey et al., 2017), signal-dependent: the executed
-    action is the demonstrator's plus zero-mean Gaussian noise whose standard deviation
-    is ``scale`` times the commanded value, per dimension, clipped into the bounds.
+    """DART-style noise injection (Laskey et al., 2017): the executed action is the
+    demonstrator's plus zero-mean Gaussian noise of ``scale`` times each dimension's half
+    range, clipped into the bounds; the demonstrator's command is the label.
 
-    Behaviour cloning learns only the states the demonstrator visits; a cloned policy
-    that drifts a few millimetres off them meets inputs it never saw and may settle into
-    a fixed point (Stick Button: an arm rising forever at the top of its training range
-    with the stick already above the button) or never correct a held object that slid.
-    With noise the demonstrator keeps correcting from where the perturbed action took
-    it, and its corrections are the labels. Noise proportional to the command (as motor
-    noise is) perturbs travel and leaves the demonstrator's fine, slow phases alone:
-    additive noise of 3 mm per step kept Stick Button's hand jittering around the
-    demonstrator's 3 mm "arrived, close the fingers" test, the labels there became a mix
-    of "open" and "close", and the cloned grasp stopped with open fingers; 1 mm of it
-    dropped the stick out of its holder in 1 of 290 demonstrations. The noise stream is
-    spawned from the demonstration's seed, so the demonstrator's own draws (grasp
-    points, orders) are the same with and without noise.
+    Behaviour cloning learns only the states the demonstrator visits. Stick Button's
+    cloned stick press overshot the demonstrator's travel height by two centimetres,
+    where no demonstration said "go down": inputs clipped into the training box kept
+    saying "still rising" and the arm rose to its limit and stayed. With noise the
+    demonstrator corrects from wherever the perturbed action took it, and those
+    corrections are in the data. The scale must stay below the demonstrator's own
+    tolerances: 0.15 (3 mm per step) kept the hand jittering around its 3 mm "arrived:
+    close the fingers" test, the labels there became a mix of "open" and "close", and
+    the cloned grasp stopped at the stick with open fingers; 0.05 (1 mm) did not.
+    Noise proportional to the command instead is smallest exactly where the overshoot
+    begins (the arm slows into its travel height) and left that press failing. The
+    noise stream is spawned from the demonstration's seed, so the demonstrator's own
+    draws (grasp points, orders) are the same with and without noise.
     """
 
     def __init__(self, scale: float, low: np.ndarray, high: np.ndarray, seed: int | list[int]):
         if not 0.0 <= scale < np.inf:
             raise ValueError(f"action noise scale must be finite and >= 0, got {scale}")
-        self.scale = float(scale)
         self.low, self.high = np.asarray(low, np.float64), np.asarray(high, np.float64)
+        self.std = scale * (self.high - self.low) / 2.0
         self.rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
 
     def __call__(self, action: np.ndarray) -> np.ndarray:
-        std = self.scale * np.abs(action)
-        noisy = action + std * self.rng.standard_normal(action.shape)
+        noisy = action + self.std * self.rng.standard_normal(action.shape)
         return np.minimum(np.maximum(noisy, self.low), self.high)
 
 

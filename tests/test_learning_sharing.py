@@ -26,6 +26,9 @@ PRESSED = Predicate("Pressed", (BUTTON,), lambda s, o: True)
 ABOVE = Predicate("Above", (STICK, BUTTON), lambda s, o: True)
 NOWHERE = Predicate("AboveNone", (), lambda s, o: True)
 B0, B1 = Variable("?button0", BUTTON), Variable("?button1", BUTTON)
+ROBOT_T, BLOCK_T, TARGET_T = Type("robot", ("x",)), Type("block", ("x",)), Type("target", ("x",))
+EMPTY = Predicate("HandEmpty", (ROBOT_T,), lambda s, o: True)
+ON_T = Predicate("On", (BLOCK_T, TARGET_T), lambda s, o: True)
 S0 = Variable("?stick0", STICK)
 
 
@@ -87,6 +90,32 @@ def test_a_donor_may_end_in_an_effect_it_kept_from_its_preconditions():
     assert embed_effects(leaves, idle) is None
     # a precondition the donor deletes does not hold at its end
     assert embed_effects(TOUCH, PRESS_2) == {S0: S0, B0: B0}  # via its add Above(s, b0)
+
+
+def test_a_donor_whose_motion_was_about_objects_the_skill_cannot_see_lends_nothing():
+    # "let go" (scope: the robot) must not learn from "carry the block onto the target and
+    # let go": where that one ended was decided by the target, which "let go" cannot see
+    robot, block, target = (
+        Variable("?robot0", ROBOT_T),
+        Variable("?block0", BLOCK_T),
+        Variable("?target0", TARGET_T),
+    )
+    let_go = _op("LetGo", (robot,), [], [LiftedAtom(EMPTY, (robot,))], [])
+    place = _op(
+        "Place",
+        (block, robot, target),
+        [],
+        [LiftedAtom(EMPTY, (robot,)), LiftedAtom(ON_T, (block, target))],
+        [],
+    )
+    seg = _segment([[[0.0, 0], [0.0, 0], [0.0]], [[0.0, 0], [0.0, 0], [0.0]]])
+    mine = SkillDataset(let_go, (seg,), ((b0,),))
+    theirs = SkillDataset(place, (seg,), ((b0, b1, s0),))
+    assert embed_effects(let_go, place) is not None  # it does end where LetGo must end ...
+    assert shared_data([mine, theirs], 0) is None  # ... but its motion was about the target
+    # the other way round the whole motion is visible: Place may learn from nothing here,
+    # since LetGo never reached On(block, target)
+    assert shared_data([mine, theirs], 1) is None
 
 
 def _segment(xs: list[float]) -> Segment:

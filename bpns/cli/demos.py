@@ -29,9 +29,9 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--noise",
         type=nonnegative_float,
-        help="DART noise injection: execute the demonstrator's action times "
-        "(1 + NOISE * N(0, 1)) per dimension and record its clean commands for imitation "
-        "(default: the environment's; 0: plain demonstrations, as in the paper)",
+        help="DART noise injection: execute the demonstrator's action plus Gaussian noise "
+        "of NOISE times each action dimension's half range, and record its clean commands "
+        "for imitation (default: the environment's; 0: plain demonstrations, as in the paper)",
     )
     p.add_argument(
         "--debug",

@@ -18,12 +18,17 @@ operator is an atom the donor guarantees at its end (its add effects, or precond
 it does not delete) and at least one is a donor add effect. Such a segment demonstrably
 went where this skill must go. (Stick Button's grasp of the stick right after a press by
 hand, which adds ``AboveNoButton()`` and ``Grasped``, learns from the plain grasps, which
-keep ``AboveNoButton()`` and add ``Grasped``: at 250 demos its sampler's hand-y error
-fell from 10 mm to ... on held-out segments.) The shared networks (policy and
-subgoal generator) see the *effect scope*: the objects of the add effects, in parameter
-order, the one part of the scope every donor has. Preconditions, effects, the skill
-horizon and the classifier's negatives stay the skill's own. A skill with no donor keeps
-its scope and its data exactly as before.
+keep ``AboveNoButton()`` and add ``Grasped``.) And the donor's motion must have been about
+the lent scope's objects alone: every object whose atoms the donor changed is one the
+borrowing skill's networks see, so no object hidden from them decided where the donor
+went. Without that, Coffee's release of the knob after a twist (scope: the robot)
+borrowed "carry the pot to the plate and let go", whose end the robot's own features
+cannot predict, and the pour from the plate borrowed the pours from cup to cup, whose
+start is decided by the cup poured last (docs/METHOD.md has the measurement). The shared
+networks (policy and subgoal generator) see the *effect scope*: the objects of the add
+effects, in parameter order, the one part of the scope every donor has. Preconditions,
+effects, the skill horizon and the classifier's negatives stay the skill's own. A skill
+with no donor keeps its scope and its data exactly as before.
 """
 
 from __future__ import annotations
@@ -103,6 +108,13 @@ def embed_effects(
     return extend(0, {})
 
 
+def _affects_only(operator: STRIPSOperator, variables: set[Variable]) -> bool:
+    """Does ``operator`` change atoms over ``variables`` only (nullary atoms aside)?"""
+    return all(
+        v in variables for a in operator.add_effects | operator.delete_effects for v in a.variables
+    )
+
+
 def shared_data(datasets: Sequence[SkillDataset], k: int) -> SharedData | None:
     """What skill ``k`` learns from when other operators can lend it segments (in
     dataset order), else None: then it learns from its own data and scope as before."""
@@ -118,7 +130,7 @@ def shared_data(datasets: Sequence[SkillDataset], k: int) -> SharedData | None:
         if j == k:
             continue
         mapping = embed_effects(own.operator, other.operator)
-        if mapping is None:
+        if mapping is None or not _affects_only(other.operator, set(mapping.values())):
             continue
         where = [other.operator.parameters.index(mapping[v]) for v in variables]
         segments.extend(other.segments)

@@ -50,7 +50,7 @@ class StickButtonEnv(MujocoEnv):
         planning_defaults={"n_abstract": 1000},
         learning_defaults={"near_goal_scale": 0.01},
         oracle_skills=oracle_skills,
-        demo_noise=0.5,
+        demo_noise=0.05,
     )
     controller_config = CONTROLLER
 
