@@ -69,7 +69,7 @@ class SeedResult:
             nodes_created=r["mean_nodes_created"],
             learning_seconds=r.get("learning_seconds"),
             solved_seconds=tuple(t["seconds"] for t in r["tasks"] if t["solved"]),
-            sim_steps_per_step=_median_sim_ratio(r["tasks"]),
+            sim_steps_per_step=r.get("median_sim_steps_per_step", _median_sim_ratio(r["tasks"])),
         )
 
     def fraction_solved_within(self, seconds: float) -> float:

@@ -11,10 +11,14 @@ import platform
 import time
 import traceback
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from bpns.atomic import storage_problem
 from bpns.experiments.cells import DEMOS, EVAL, SKILLS, SWEEP_GNN_SEED, Cell
+from bpns.learning.baselines import BaselinesConfig
+from bpns.registry import make_environment
+from bpns.workflow import collect_demos, learn_to_directory
 
 
 @dataclass(frozen=True)
@@ -62,74 +66,49 @@ def run_cell(job: CellJob) -> dict[str, Any]:
 
 
 def _collect(job: CellJob) -> dict[str, Any]:
-    from bpns.datasets import save_demonstrations
-    from bpns.demos import collect_demonstrations
-    from bpns.registry import make_environment
-
+    """Demos of the cell's train tasks, as ``bpns demos`` collects them."""
     cell = job.cell
     env = make_environment(cell.env)
-    solved: list[int] = []
-    failed: list[int] = []
-
-    def successful():
-        demos = collect_demonstrations(
-            env.name, cell.count, cell.seed, workers=1, noise=cell.demo_noise
-        )
-        for index, demo in demos:
-            if demo is None:
-                failed.append(index)
-            else:
-                solved.append(index)
-                yield demo
-
-    n = save_demonstrations(job.output, env, successful())
-    if n == 0:
+    written = collect_demos(
+        env, cell.count, cell.seed, Path(job.output), workers=1, noise=cell.demo_noise
+    )
+    if written.num_written == 0:
         raise RuntimeError(f"the demonstrator solved none of {cell.count} {env.name} tasks")
-    return {"num_demos": n, "solved_tasks": solved, "failed_tasks": failed}
+    failed = set(written.failed)
+    solved = [i for i in range(cell.count) if i not in failed]
+    return {
+        "num_demos": written.num_written,
+        "solved_tasks": solved,
+        "failed_tasks": sorted(failed),
+    }
 
 
 def _learn(job: CellJob) -> dict[str, Any]:
-    import torch
-
-    from bpns.datasets import iter_demonstrations
-    from bpns.learning import learn_skills, save_skills
-    from bpns.learning.given import given_skills_of
-    from bpns.registry import make_environment
-
+    """Skills (and the baselines, if the cell asks) as ``bpns learn`` learns them, on one
+    torch thread: small networks, and cells run in parallel."""
     assert job.cell.learning is not None and job.num_demos is not None
     env = make_environment(job.cell.env)
-    torch.set_num_threads(1)  # small networks: one thread is fastest, and cells run in parallel
-    t0 = time.perf_counter()
-    demos = list(iter_demonstrations(job.inputs[0], env, range(job.num_demos), features_only=True))
-    load_seconds = time.perf_counter() - t0
-    learned = learn_skills(
-        demos,
-        env.predicates,
-        env.contact_predicates,
+    baselines = BaselinesConfig(seed=SWEEP_GNN_SEED) if job.cell.baselines else None
+    run = learn_to_directory(
+        env,
+        Path(job.inputs[0]),
+        Path(job.output),
         job.cell.learning,
-        given=given_skills_of(env),
+        limit=job.num_demos,
+        threads=1,
+        baselines=baselines,
     )
-    save_skills(learned, job.output, overwrite=True, env_name=env.name)
-    baseline_seconds: dict[str, float] = {}
-    if job.cell.baselines:
-        from bpns.learning.baselines import BaselinesConfig, learn_baselines_into
-
-        # after the skills: saving them replaces the directory
-        baseline_seconds = dict(
-            learn_baselines_into(
-                job.output, env, demos, learned, BaselinesConfig(seed=SWEEP_GNN_SEED)
-            )
-        )
-    assert learned.stats is not None
+    stats = run.learned.stats
+    assert stats is not None
     return {
-        "baseline_seconds": baseline_seconds,
-        "num_demos": job.num_demos,
-        "num_skills": len(learned.skills),
-        "skills": [s.name for s in learned.skills],
-        "learning_seconds": learned.stats.total_seconds,
-        "stage_seconds": dict(learned.stats.stage_seconds),
-        "load_seconds": load_seconds,
-        "stats": str(learned.stats),
+        "baseline_seconds": dict(run.baseline_seconds or ()),
+        "num_demos": run.num_demos,
+        "num_skills": len(run.learned.skills),
+        "skills": [s.name for s in run.learned.skills],
+        "learning_seconds": stats.total_seconds,
+        "stage_seconds": dict(stats.stage_seconds),
+        "load_seconds": run.load_seconds,
+        "stats": str(stats),
     }
 
 
@@ -157,6 +136,7 @@ def _evaluate(job: CellJob) -> dict[str, Any]:
             "reason": o.reason,
             "nodes_created": o.nodes_created,
             "samples": o.samples,
+            "sim_steps": o.sim_steps,
             "num_actions": o.num_actions,
         }
         for o in report.outcomes
