@@ -214,30 +214,40 @@ def experiment_sections() -> list[str]:
 
 def experiment_summary() -> str:
     """One table of solved % (mean ± std over seeds) for every approach (rows) and every
-    (environment, demo count) swept (columns), from the sweeps' results.json."""
+    (environment, demo count) swept (columns), from the sweeps' results.json; where two
+    sweeps measured the same environment and demo count, each gets its own column, named
+    after its directory (e.g. before and after a change of the method)."""
     rows: list[dict] = []
     for path in sorted(EXPERIMENTS.glob("*/results.json")):
-        rows += json.loads(path.read_text())["rows"]
-    columns = sorted({(r["env"], r["demos"]) for r in rows if r["demos"] is not None})
+        sweep = path.parent.name
+        rows += [{**r, "sweep": sweep} for r in json.loads(path.read_text())["rows"]]
+    learned = [(r["env"], r["demos"], r["sweep"]) for r in rows if r["demos"] is not None]
+    columns = sorted(set(learned))
+    shared = {(e, n) for e, n, _ in columns if sum((e, n) == c[:2] for c in columns) > 1}
     approaches = list(dict.fromkeys(r["label"] for r in rows))
-    cell: dict[tuple[str, str, int], str] = {}
+    cell: dict[tuple[str, str, int, str], str] = {}
     for r in rows:
         sp = r["solved_percent"]
         text = f"{sp['mean']:.1f} ± {sp['std']:.1f}"
-        for env, demos in columns:
-            if env == r["env"] and r["demos"] in (None, demos):
-                cell[(r["label"], env, demos)] = text
-    head = "| Approach | " + " | ".join(f"{e} {n}" for e, n in columns) + " |"
+        for env, demos, sweep in columns:
+            if env == r["env"] and sweep == r["sweep"] and r["demos"] in (None, demos):
+                cell[(r["label"], env, demos, sweep)] = text
+
+    def name(env: str, demos: int, sweep: str) -> str:
+        return f"{env} {demos}" + (f" ({sweep})" if (env, demos) in shared else "")
+
+    head = "| Approach | " + " | ".join(name(*c) for c in columns) + " |"
     lines = [
         "Eval tasks solved (%), mean ± std over the seeds of each sweep below; columns are "
         "environment and number of demonstrations (the oracle learns nothing: the same "
-        "number in each of its environment's columns); – where not run.",
+        "number in each of its environment's columns), and the sweep where two measured "
+        "the same; – where not run.",
         "",
         head,
         "|---|" + "---:|" * len(columns),
     ]
     for a in approaches:
-        values = [cell.get((a, e, n), "–") for e, n in columns]
+        values = [cell.get((a, *c), "–") for c in columns]
         lines.append(f"| {a} | " + " | ".join(values) + " |")
     return "\n".join(lines) + "\n"
 
