@@ -33,6 +33,7 @@ from bpns.failures import FailureReason
 from bpns.planning.config import PlanningConfig
 from bpns.planning.nogoods import NogoodMemo, PrefixCache
 from bpns.planning.search import AbstractPlan
+from bpns.rollouts import REACHED, Rollout, further, rollout_of
 from bpns.structs import GroundOperator, Skill, State, Task
 
 
@@ -70,6 +71,8 @@ class RefinementResult:
     step_starts: tuple[int, ...]
     reason: FailureReason | None
     stats: RefinementStats = field(default_factory=RefinementStats)
+    # a failed refinement: the deepest refined prefix and the failed sample after it
+    furthest: Rollout | None = None
 
 
 @dataclass
@@ -149,6 +152,36 @@ def _sample(
     return out
 
 
+_NOT_EXECUTED = (
+    FailureReason.SAMPLER_ERROR,
+    FailureReason.SAMPLER_NONFINITE,
+    FailureReason.NOGOOD,
+)
+
+
+def _attempt(
+    plan: AbstractPlan,
+    segments: Sequence[_Segment | None],
+    i: int,
+    executor: SkillExecutor,
+    reason: FailureReason,
+) -> Rollout:
+    """Steps 0..i-1 as refined, then step i's failed sample (its actions, if it ran)."""
+    done = [
+        (op, seg.subgoal, seg.actions, REACHED)
+        for op, seg in zip(plan.operators[:i], segments[:i], strict=True)
+        if seg is not None
+    ]
+    ran = reason not in _NOT_EXECUTED
+    failed = (
+        plan.operators[i],
+        executor.last_subgoal if ran else None,
+        executor.last_actions if ran else [],
+        str(reason),
+    )
+    return rollout_of([*done, failed], executor.low.size)
+
+
 def _flat(state: State) -> np.ndarray:
     return state_features(state)[1]
 
@@ -208,6 +241,7 @@ def refine(
         used[i + 1] = used[i] + len(seg.actions)
         i += 1
     reason: FailureReason | None = None
+    furthest: Rollout | None = None
     try:
         while i < n:
             exhausted = tries[i] >= config.n_samples
@@ -246,6 +280,10 @@ def refine(
             if isinstance(out, FailureReason):
                 counters.failed(i, out)
                 horizon_hit[i] |= out is FailureReason.TASK_HORIZON
+                ran = len(executor.last_actions) if out not in _NOT_EXECUTED else 0
+                reached = (i, used[i] + ran)
+                if furthest is None or reached > furthest.progress:
+                    furthest = further(furthest, _attempt(plan, segments, i, executor, out))
                 continue
             successes[i] += 1
             counters.step_successes[i] += 1
@@ -260,10 +298,13 @@ def refine(
     except ExecutionTimeout:
         counters.failed(min(i, n - 1), FailureReason.TIMEOUT)
         reason = FailureReason.TIMEOUT
+        if i < n:
+            timed_out = _attempt(plan, segments, i, executor, FailureReason.TIMEOUT)
+            furthest = further(furthest, timed_out)
     stats = counters.freeze(executor.sim_steps)
     if reason is not None:
         return RefinementResult(
-            False, np.zeros((0, executor.low.size)), (), (), (), (), (), reason, stats
+            False, np.zeros((0, executor.low.size)), (), (), (), (), (), reason, stats, furthest
         )
     segs = [s for s in segments if s is not None]
     actions = [a for s in segs for a in s.actions]
