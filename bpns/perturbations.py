@@ -112,9 +112,7 @@ def _check(name: str, value: object, ok, bound: str) -> None:
 def _typed(values: dict) -> dict:
     unknown = sorted(set(values) - set(NAMES))
     if unknown:
-        raise PerturbationError(
-            f"unknown perturbation {unknown[0]!r}; known: {', '.join(NAMES)}"
-        )
+        raise PerturbationError(f"unknown perturbation {unknown[0]!r}; known: {', '.join(NAMES)}")
     out = {}
     for name, value in values.items():
         if name in _INTS:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bpns.datasets import DatasetError, load_demonstrations, read_attributes, write_demonstrations
+from bpns.demos import ReplayReport, replay
 from bpns.environment import Environment
 from bpns.evaluation import EvalReport, TaskOutcome
 from bpns.perturbations import Perturbation, PerturbationError, perturbed
@@ -138,3 +139,59 @@ class RolloutsFile:
         """Row ``row``'s demonstration, loaded into ``self.environment(env)``."""
         (demo,) = load_demonstrations(self.path, self.environment(env), [row.position])
         return demo
+
+
+def is_rollouts_file(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is a readable demonstration file that holds rollouts."""
+    try:
+        root, _ = read_attributes(path)
+    except DatasetError:
+        return False
+    return root.get("kind") == KIND
+
+
+@dataclass(frozen=True)
+class RolloutReplay:
+    """Each row re-simulated under the file's physics: exact, and the goal reached at the
+    end exactly when the row says the task was solved."""
+
+    physics: str
+    rows: tuple[tuple[RolloutInfo, ReplayReport], ...]
+
+    @property
+    def bad(self) -> list[tuple[RolloutInfo, ReplayReport]]:
+        return [(i, r) for i, r in self.rows if not r.exact or r.goal_reached != i.solved]
+
+    @property
+    def ok(self) -> bool:
+        return not self.bad
+
+    def lines(self) -> list[str]:
+        worst = max((r.max_state_diff for _, r in self.rows), default=0.0)
+        solved = sum(i.solved for i, _ in self.rows)
+        out = [
+            f"replayed {len(self.rows)} rollouts ({solved} solved, "
+            f"{sum(r.steps for _, r in self.rows)} steps, physics: {self.physics}): "
+            f"max |state diff| = {worst:.3g}, {len(self.rows) - len(self.bad)}/{len(self.rows)} "
+            "exact with the recorded outcome"
+        ]
+        for info, r in self.bad:
+            out.append(
+                f"  task {info.task}: max state diff {r.max_state_diff:.3g}, feature diff "
+                f"{r.max_feature_diff:.3g}, goal {'reached' if r.goal_reached else 'not reached'}"
+                f" (recorded: {'solved' if info.solved else info.reason})"
+            )
+        return out
+
+
+def replay_rollouts(
+    env: Environment, path: str | os.PathLike, limit: int | None = None
+) -> RolloutReplay:
+    """Re-simulate the first ``limit`` (default: all) rollouts of ``path`` (``env``
+    nominal: the file's perturbation is applied)."""
+    f = RolloutsFile.read(path)
+    world = f.environment(env)
+    rows = f.rows[: limit or len(f.rows)]
+    demos = load_demonstrations(path, world, [r.position for r in rows])
+    checked = tuple((r, replay(world, d, r.position)) for r, d in zip(rows, demos, strict=True))
+    return RolloutReplay(f.perturbation.label(), checked)

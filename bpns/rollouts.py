@@ -91,3 +91,31 @@ def further(a: Rollout | None, b: Rollout | None) -> Rollout | None:
     if b is None:
         return a
     return b if b.progress > a.progress else a
+
+
+def step_captions(steps: Sequence[PlanStep], num_states: int) -> list[str]:
+    """Per state of a rollout, the skill being executed and its objects (state i follows
+    action i - 1; the initial state shows the first skill)."""
+    if not steps:
+        return [""] * num_states
+    out, k = [], 0
+    for i in range(num_states):
+        action = max(0, i - 1)
+        while k + 1 < len(steps) and steps[k + 1].start <= action:
+            k += 1
+        out.append(f"{k + 1}/{len(steps)} {steps[k].label}")
+    return out
+
+
+def outcome_caption(
+    solved: bool, reason: str, steps: Sequence[PlanStep], num_actions: int, physics: str = ""
+) -> str:
+    """The last frame's caption: solved, or the task's failure and the step it ended in."""
+    where = f" [{physics}]" if physics and physics != "nominal" else ""
+    if solved:
+        return f"SOLVED in {num_actions} steps, {len(steps)} skills{where}"
+    failed = next((s for s in reversed(steps) if s.outcome != REACHED), None)
+    text = f"FAILED: {reason}{where}"
+    if failed is not None:
+        text += f"\nlast try: {failed.label} -> {failed.outcome} after {num_actions} steps"
+    return text

@@ -129,6 +129,7 @@ def check_eval_outputs(
     if out is not None:
         check_output_dir(out, "--out")
         names = ["results.json", "results.md", *(f"plans_{a}.npz" for a in approaches)]
+        names += [f"rollouts_{a}.h5" for a in approaches]
         for name in names:
             check_output_file(out / name, "--out", overwrite)
     if video is not None:

@@ -97,6 +97,7 @@ class DoorsEnv(MujocoEnv):
 
     name = "doors"
     contact_settle_steps = 4
+    default_camera = "follow"  # the base travels rooms away: the overview shows it tiny
     base_config = BaseConfig()
     controller_config = ControllerConfig(
         workspace_low=(0.2, -0.5, -0.06),
