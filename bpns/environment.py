@@ -41,6 +41,10 @@ class Environment(Protocol):
     # Optional: LearningConfig fields this domain learns with by default, e.g.
     # ``{"near_goal_scale": 0.01}`` where the demonstrator switches near its goals.
     # ``learning_defaults: Mapping[str, object]``
+    # Optional: the camera videos use unless told (``default_camera: str``, e.g. one that
+    # follows a mobile robot); ``perturbed(spec) -> Environment`` (the same environment
+    # under a ``bpns.perturbations.Perturbation``) and ``observe(state) -> State`` (what
+    # policies see, e.g. noisy features). ``mj_envs.MujocoEnv`` provides all three.
 
     @property
     def goal_predicates(self) -> frozenset[Predicate]: ...
