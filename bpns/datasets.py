@@ -88,8 +88,8 @@ def _plain(value: object) -> object:
 def _write_demo(g: h5py.Group, env: Environment, demo: Demonstration) -> None:
     first = demo.states[0]
     assert first.sim is not None, "demonstration states must carry simulator states"
-    actions = np.asarray(demo.actions, dtype=np.float64).reshape(len(demo.actions), -1)
-    if actions.shape[1] == 0:  # no actions at all (a rollout that never acted)
+    actions = np.asarray(demo.actions, dtype=np.float64)
+    if actions.size == 0:  # a rollout that never acted: still (0, action_dim)
         actions = np.zeros((0, len(env.action_low)))
     g.create_dataset("actions", data=actions)
     g.create_dataset("states", data=np.stack([s.sim.flat for s in demo.states]))

@@ -106,7 +106,8 @@ def _captioned(
     last = None
     for frame, i in zip(frames, index, strict=True):
         last = frame
-        yield draw_caption(frame, captions[i]) if captions is not None else frame
+        text = captions[i] if captions is not None else ""
+        yield draw_caption(frame, text) if text else frame
     if last is not None and final_caption is not None:
         end = draw_caption(last, final_caption)
         for _ in range(max(1, hold)):

@@ -75,6 +75,23 @@ def test_rollouts_of_failed_and_perturbed_tasks_replay_exactly(
     assert perturbed_report.num_solved >= 1  # solved rows are checked to reach the goal
 
 
+def test_a_task_where_nothing_was_executed_is_a_one_state_row(cover_env, tmp_path):
+    from bpns.evaluation import EvalReport, TaskOutcome
+
+    config = planning_config_for(cover_env, timeout=1.0)
+    nothing = TaskOutcome(
+        0, False, 0.1, "no_abstract_plan", 0, 3, 0, 0, 0, None, actions=np.zeros((0, 4))
+    )
+    report = EvalReport("cover", "bpns", "BPNS", config, (nothing,), task_seed=7)
+    path = tmp_path / "empty.h5"
+    save_rollouts(path, cover_env, report)
+    f = RolloutsFile.read(path)
+    demo = f.demonstration(cover_env, f.row(0))
+    assert demo.actions.shape == (0, 4) and len(demo.states) == 1
+    assert f.row(0).reason == "no_abstract_plan" and f.row(0).steps == ()
+    assert replay_rollouts(cover_env, path).ok
+
+
 def test_a_solved_rollout_is_the_validated_plan(perturbed_report):
     o = next(o for o in perturbed_report.outcomes if o.solved)
     np.testing.assert_array_equal(o.rollout.actions, o.actions)
