@@ -11,20 +11,12 @@ from bpns.cli import main
 from bpns.experiments.aggregate import aggregate, markdown_table
 from bpns.experiments.cells import EVAL
 from bpns.experiments.plots import save_figure, success_vs_perturbation
-from bpns.experiments.presets import SweepConfig, SweepConfigError
-from bpns.experiments.store import FORMAT
+from bpns.experiments.presets import SweepConfigError
 from bpns.experiments.sweep import sweep_cells
 from bpns.perturbations import Perturbation
+from tests.test_experiments import TINY, _eval_record
 
-BASE = SweepConfig(
-    name="tiny",
-    envs=("cover",),
-    demo_counts=(3,),
-    seeds=(0,),
-    approaches=("bpns", "oracle"),
-    eval_tasks=1,
-    timeout=60.0,
-)
+BASE = TINY  # the harness tests' sweep: cover, 3 demos, seed 0, bpns + oracle
 
 
 def test_each_eval_cell_runs_once_per_level_of_the_axis(cover_env):
@@ -48,28 +40,12 @@ def test_a_bad_axis_is_a_config_error_and_a_cli_error(capsys):
     assert "unknown perturbation 'friction'" in capsys.readouterr().err
 
 
-def _record(approach: str, demos: int | None, level: float, solved: int, seed: int = 0):
-    return {
-        "format": FORMAT,
-        "settings": {
-            "kind": EVAL,
-            "env": "cover",
-            "seed": seed,
-            "approach": approach,
-            "demo_count": demos,
-            "perturbation": dataclasses.asdict(Perturbation(friction_scale=level)),
-            "perturb_axis": "friction_scale",
-        },
-        "result": {
-            "num_tasks": 4,
-            "solved_percent": 25.0 * solved,
-            "median_seconds": 1.0 if solved else None,
-            "mean_seconds": 1.0 if solved else None,
-            "mean_nodes_created": 5.0,
-            "learning_seconds": None,
-            "tasks": [{"solved": i < solved, "seconds": 1.0} for i in range(4)],
-        },
-    }
+def _record(approach: str, demos: int | None, level: float, solved: int):
+    """An eval cell of 4 tasks at friction level ``level``, ``solved`` of them solved."""
+    record = _eval_record(0, approach, demos, [1.0] * solved + [None] * (4 - solved))
+    physics = dataclasses.asdict(Perturbation(friction_scale=level))
+    record["settings"].update(perturbation=physics, perturb_axis="friction_scale")
+    return record
 
 
 RECORDS = [
