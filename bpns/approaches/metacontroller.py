@@ -29,7 +29,7 @@ from bpns.execution import (
     completion_test,
     expected_after,
 )
-from bpns.failures import FailureReason
+from bpns.failures import NOT_EXECUTED, FailureReason
 from bpns.planning.config import PlanningConfig
 from bpns.rollouts import REACHED, rollout_of
 from bpns.structs import GroundAtom, Object, Skill, State, Task
@@ -127,7 +127,7 @@ class Metacontroller(Approach):
                     if not isinstance(out, FailureReason):
                         break
                 if isinstance(out, FailureReason):
-                    ran = out not in (FailureReason.SAMPLER_ERROR, FailureReason.SAMPLER_NONFINITE)
+                    ran = out not in NOT_EXECUTED
                     attempt = (
                         op,
                         executor.last_subgoal if ran else None,

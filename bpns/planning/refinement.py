@@ -29,7 +29,7 @@ from bpns.execution import (
     completion_test,
     state_features,
 )
-from bpns.failures import FailureReason
+from bpns.failures import NOT_EXECUTED, FailureReason
 from bpns.planning.config import PlanningConfig
 from bpns.planning.nogoods import NogoodMemo, PrefixCache
 from bpns.planning.search import AbstractPlan
@@ -152,13 +152,6 @@ def _sample(
     return out
 
 
-_NOT_EXECUTED = (
-    FailureReason.SAMPLER_ERROR,
-    FailureReason.SAMPLER_NONFINITE,
-    FailureReason.NOGOOD,
-)
-
-
 def _attempt(
     plan: AbstractPlan,
     segments: Sequence[_Segment | None],
@@ -172,7 +165,7 @@ def _attempt(
         for op, seg in zip(plan.operators[:i], segments[:i], strict=True)
         if seg is not None
     ]
-    ran = reason not in _NOT_EXECUTED
+    ran = reason not in NOT_EXECUTED
     failed = (
         plan.operators[i],
         executor.last_subgoal if ran else None,
@@ -280,7 +273,7 @@ def refine(
             if isinstance(out, FailureReason):
                 counters.failed(i, out)
                 horizon_hit[i] |= out is FailureReason.TASK_HORIZON
-                ran = len(executor.last_actions) if out not in _NOT_EXECUTED else 0
+                ran = len(executor.last_actions) if out not in NOT_EXECUTED else 0
                 reached = (i, used[i] + ran)
                 if furthest is None or reached > furthest.progress:
                     furthest = further(furthest, _attempt(plan, segments, i, executor, out))
