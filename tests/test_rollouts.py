@@ -181,3 +181,22 @@ def test_doors_videos_default_to_a_camera_its_scene_has():
     assert default_camera(doors) == "follow"
     assert "follow" in camera_names(doors.task(0, 0, False).init.sim.world)
     assert default_camera(make_environment("cover")) == "overview"
+
+
+def test_a_metacontroller_keeps_the_skills_it_executed_and_the_one_that_failed():
+    from tests import toy_gnn
+    from tests.test_baselines_solvers import _meta, _tasks
+
+    task = _tasks(1, seed=2)[0]
+    solved = _meta(toy_gnn.oracle_skills()).solve(task, np.random.default_rng(0), 60.0)
+    assert solved.success
+    assert tuple(s.label for s in solved.rollout.steps) == solved.skeleton
+    np.testing.assert_array_equal(solved.rollout.actions, solved.actions)
+    pick, place = toy_gnn.oracle_skills()
+    # a pick sampler that grips 2 m beside the block: the grasp never happens
+    bad = type(pick)(pick.operator, pick.policy, lambda s, o, r: s.vec(o) + [0, 0, 2.0, 0])
+    failed = _meta([bad, place]).solve(task, np.random.default_rng(0), 60.0)
+    assert not failed.success
+    (step,) = failed.rollout.steps
+    assert step.operator == pick.operator.name and step.outcome != REACHED
+    assert len(failed.rollout.actions) > 0  # the last failed sample's own actions
