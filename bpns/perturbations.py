@@ -99,6 +99,15 @@ class Perturbation:
 
 
 NAMES = tuple(f.name for f in dataclasses.fields(Perturbation))
+# axis labels of figures: each name with its unit
+AXIS_LABELS = {
+    "mass_scale": "object mass scale",
+    "friction_scale": "friction scale",
+    "gain_scale": "arm stiffness (kp) scale",
+    "action_noise": "action noise (std, fraction of half range)",
+    "obs_noise": "observation noise (std, feature units)",
+    "latency": "latency (control steps)",
+}
 _INTS = {"latency", "seed"}
 
 

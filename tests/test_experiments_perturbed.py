@@ -79,6 +79,6 @@ def test_the_robustness_figure_draws_success_at_each_level_per_approach(tmp_path
     }
     assert [round(y) for _, y in got["Oracle"]] == [50, 100]
     assert [round(y) for _, y in got["BPNS"]] == [25, 75]
-    assert ax.get_xlabel() == "friction_scale"
+    assert ax.get_xlabel() == "friction scale"
     paths = save_figure(fig, tmp_path / "robust")
     assert all(p.stat().st_size > 0 for p in paths)

@@ -23,6 +23,7 @@ from matplotlib.figure import Figure
 
 from bpns.atomic import atomic_path
 from bpns.experiments.aggregate import Row
+from bpns.perturbations import AXIS_LABELS
 
 FORMATS = ("png", "svg")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
@@ -147,7 +148,7 @@ def success_vs_perturbation(rows: Sequence[Row]) -> Figure:
             )
         ax.set_xticks(levels, [f"{v:g}" for v in levels])
         ax.set_ylim(-3, 103)
-        ax.set_xlabel(axis)
+        ax.set_xlabel(AXIS_LABELS.get(axis, axis))
         ax.set_ylabel("eval tasks solved (%)")
         ax.set_title(env)
         ax.grid(alpha=0.3)
