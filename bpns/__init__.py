@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 from bpns.structs import (
     Demonstration,
+    GivenSkill,
     GroundAtom,
     LiftedAtom,
     Object,
@@ -34,7 +35,7 @@ from bpns.structs import (
 
 if TYPE_CHECKING:
     from bpns.approaches import Approach, ApproachEntry, Solution, approach_names, get_approach
-    from bpns.environment import Environment
+    from bpns.environment import Capabilities, Environment
     from bpns.evaluation import EvalSpec, evaluate
     from bpns.failures import FailureReason
     from bpns.learning import LearnedSkills, LearningConfig, learn_skills
@@ -47,6 +48,7 @@ _LAZY = {
     "make_environment": "bpns.registry",
     "environment_names": "bpns.registry",
     "Environment": "bpns.environment",
+    "Capabilities": "bpns.environment",
     "learn_skills": "bpns.learning",
     "LearnedSkills": "bpns.learning",
     "LearningConfig": "bpns.learning",
@@ -82,6 +84,7 @@ def __dir__() -> list[str]:
 __all__ = [
     "Approach",
     "ApproachEntry",
+    "Capabilities",
     "FailureReason",
     "Solution",
     "approach_names",
@@ -89,6 +92,7 @@ __all__ = [
     "Demonstration",
     "Environment",
     "EvalSpec",
+    "GivenSkill",
     "GroundAtom",
     "LearnedSkills",
     "LearningConfig",

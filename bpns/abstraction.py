@@ -16,11 +16,6 @@ def object_tuples(objects: Sequence[Object], types: Sequence[Type]) -> Iterator[
             yield combo
 
 
-def all_ground_atoms(predicate: Predicate, objects: Sequence[Object]) -> Iterator[GroundAtom]:
-    for combo in object_tuples(objects, predicate.types):
-        yield GroundAtom(predicate, combo)
-
-
 def abstract(state: State, predicates: Collection[Predicate]) -> frozenset[GroundAtom]:
     """alpha(x): every ground atom over ``state``'s objects whose classifier holds."""
     objects = state.objects

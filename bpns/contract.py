@@ -20,8 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
+from bpns.datasets import load_demonstrations, save_demonstrations
 from bpns.demo_attempts import attempt_demonstration
-from bpns.environment import Environment
+from bpns.demos import replay
+from bpns.environment import Environment, declaration_problem
+from bpns.learning.config import learning_config_for
+from bpns.planning.config import planning_config_for
 from bpns.registry import GROUP
 from bpns.structs import Demonstration, Object, Predicate, State, Task
 
@@ -174,6 +178,14 @@ def check_tasks(ctx: _Context) -> None:
 
 def check_goal_predicates(ctx: _Context) -> None:
     env = ctx.env
+    if problem := declaration_problem(env):
+        ctx.fail("declarations", problem)
+        return
+    for what, make in (("planning", planning_config_for), ("learning", learning_config_for)):
+        try:
+            make(env)
+        except (TypeError, ValueError) as err:
+            ctx.fail("declarations", f"the declared {what} defaults are not valid: {err}")
     preds = frozenset(env.predicates)
     if extra := frozenset(env.contact_predicates) - preds:
         ctx.fail("declarations", f"contact_predicates not in predicates: {_names(extra)}")
@@ -278,9 +290,6 @@ def check_demonstrator(ctx: _Context) -> None:
 
 
 def check_replay(ctx: _Context) -> None:
-    from bpns.datasets import load_demonstrations, save_demonstrations
-    from bpns.demos import replay
-
     if not ctx.demos and "demonstrator" not in ctx.report.checks:
         cfg = ctx.config
         for i in range(cfg.n_demos):

@@ -3,7 +3,10 @@
 Layout::
 
     /                      attrs: env, format, num_demos
-    /data/demo_<i>/actions (k, action_dim) float64
+    /data/demo_<i>/actions (k, action_dim) float64   executed (replay uses these)
+    /data/demo_<i>/expert_actions (k, action_dim)    optional: the demonstrator's commands
+                                                     where noise was injected (learning
+                                                     imitates these)
     /data/demo_<i>/states  (k+1, state_dim) float64   flat simulator states
     /data/demo_<i>/features/<object>  (k+1, dim) float64
       attrs: world (the task's MJCF text), goal (JSON [[predicate, [objects]]]),
@@ -92,6 +95,8 @@ def _write_demo(g: h5py.Group, env: Environment, demo: Demonstration) -> None:
     if actions.size == 0:  # a rollout that never acted: still (0, action_dim)
         actions = np.zeros((0, len(env.action_low)))
     g.create_dataset("actions", data=actions)
+    if demo.expert_actions is not None:  # noise-injected demos: what the expert commanded
+        g.create_dataset("expert_actions", data=np.asarray(demo.expert_actions, np.float64))
     g.create_dataset("states", data=np.stack([s.sim.flat for s in demo.states]))
     feats = g.create_group("features")
     for obj in first.objects:
@@ -191,6 +196,13 @@ def _read_demo(g: h5py.Group, env: Environment, features_only: bool) -> Demonstr
     goal_spec = checks.parse_goal(checks.json_attr(g, "goal"))
     horizon = checks.int_attr(g, "horizon", 1, checks.MAX_ROWS)
     actions = checks.read_matrix(g, "actions", len(env.action_low))
+    expert = (
+        checks.read_matrix(g, "expert_actions", len(env.action_low))
+        if "expert_actions" in g
+        else None
+    )
+    if expert is not None and expert.shape != actions.shape:
+        raise ValueError(f"expert_actions has shape {expert.shape}, actions {actions.shape}")
     feat_group = checks.member(g, "features", h5py.Group)
     if set(feat_group) != set(objects):
         raise ValueError(
@@ -219,4 +231,4 @@ def _read_demo(g: h5py.Group, env: Environment, features_only: bool) -> Demonstr
             raise ValueError(f"goal atom {pname}{tuple(args)} names an unknown object")
         goal.add(GroundAtom(preds[pname], tuple(objects[o] for o in args)))  # TypeError: arity
     task = Task(init=states[0], goal=frozenset(goal), horizon=horizon)
-    return Demonstration(task=task, states=states, actions=actions)
+    return Demonstration(task=task, states=states, actions=actions, expert_actions=expert)

@@ -57,20 +57,70 @@ class DemoAttempt:
         return "\n".join(lines)
 
 
+class ActionNoise:
+    """DART-style noise injection (Laskey et al., 2017), signal-dependent: the executed
+    action is the demonstrator's plus zero-mean Gaussian noise whose standard deviation
+    is ``scale`` times the commanded value, per dimension, clipped into the bounds.
+
+    Behaviour cloning learns only the states the demonstrator visits; a cloned policy
+    that drifts a few millimetres off them meets inputs it never saw and may settle into
+    a fixed point (Stick Button: an arm rising forever at the top of its training range
+    with the stick already above the button) or never correct a held object that slid.
+    With noise the demonstrator keeps correcting from where the perturbed action took
+    it, and its corrections are the labels. Noise proportional to the command (as motor
+    noise is) perturbs travel and leaves the demonstrator's fine, slow phases alone:
+    additive noise of 3 mm per step kept Stick Button's hand jittering around the
+    demonstrator's 3 mm "arrived, close the fingers" test, the labels there became a mix
+    of "open" and "close", and the cloned grasp stopped with open fingers; 1 mm of it
+    dropped the stick out of its holder in 1 of 290 demonstrations. The noise stream is
+    spawned from the demonstration's seed, so the demonstrator's own draws (grasp
+    points, orders) are the same with and without noise.
+    """
+
+    def __init__(self, scale: float, low: np.ndarray, high: np.ndarray, seed: int | list[int]):
+        if not 0.0 <= scale < np.inf:
+            raise ValueError(f"action noise scale must be finite and >= 0, got {scale}")
+        self.scale = float(scale)
+        self.low, self.high = np.asarray(low, np.float64), np.asarray(high, np.float64)
+        self.rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
+
+    def __call__(self, action: np.ndarray) -> np.ndarray:
+        std = self.scale * np.abs(action)
+        noisy = action + std * self.rng.standard_normal(action.shape)
+        return np.minimum(np.maximum(noisy, self.low), self.high)
+
+
+def demo_noise_of(env: Environment) -> float:
+    """The DART noise scale ``env`` declares for its demonstrations (0.0: none)."""
+    return env.capabilities.demo_noise
+
+
 def attempt_demonstration(
-    env: Environment, task: Task, seed: int | list[int], trace_length: int = TRACE_LENGTH
+    env: Environment,
+    task: Task,
+    seed: int | list[int],
+    trace_length: int = TRACE_LENGTH,
+    noise: float = 0.0,
 ) -> DemoAttempt:
-    """Roll the env's demonstrator out from ``task.init`` and report the outcome."""
+    """Roll the env's demonstrator out from ``task.init`` and report the outcome.
+
+    ``noise`` > 0 executes perturbed actions (:class:`ActionNoise`) and records the
+    demonstrator's commands as the demo's ``expert_actions``; 0 is a plain rollout."""
     states: list[State] = [task.init]
     actions: list[np.ndarray] = []
+    commanded: list[np.ndarray] = []
     error = trace_text = None
     try:
+        perturb = ActionNoise(noise, env.action_low, env.action_high, seed) if noise else None
         policy: Callable[[State], np.ndarray] = env.demonstrator(task, np.random.default_rng(seed))
         state = task.init
         for _ in range(task.horizon):
             if task.goal_holds(abstract(state, env.goal_predicates)):
                 break
             action = env.check_action(policy(state))
+            commanded.append(action)
+            if perturb is not None:
+                action = perturb(action)
             state = env.simulate(state, action)
             states.append(state)
             actions.append(action)
@@ -78,8 +128,10 @@ def attempt_demonstration(
         error = f"{type(err).__name__}: {err}"
         trace_text = tb.format_exc()
     if error is None and task.goal_holds(abstract(states[-1], env.goal_predicates)):
-        act = np.asarray(actions, dtype=np.float64).reshape(len(actions), len(env.action_low))
-        demo = Demonstration(task=task, states=tuple(states), actions=act)
+        shape = (len(actions), len(env.action_low))
+        act = np.asarray(actions, dtype=np.float64).reshape(shape)
+        expert = None if perturb is None else np.asarray(commanded, np.float64).reshape(shape)
+        demo = Demonstration(task=task, states=tuple(states), actions=act, expert_actions=expert)
         return DemoAttempt(demo, len(actions))
     if error is None:
         missing = task.goal - frozenset(abstract(states[-1], env.goal_predicates))

@@ -13,6 +13,7 @@ from bpns.abstraction import abstract
 from bpns.demo_attempts import DemoAttempt, attempt_demonstration
 from bpns.environment import Environment
 from bpns.pools import bounded_map, capped_workers, make_pool
+from bpns.registry import make_environment
 from bpns.structs import Demonstration, Task
 
 
@@ -28,23 +29,22 @@ class DemoJob:
     seed: int
     index: int
     train: bool = True
+    noise: float = 0.0
 
 
 def _attempt_one(job: DemoJob) -> tuple[int, DemoAttempt]:
-    from bpns.registry import make_environment
-
     env = _ENV_CACHE.get(job.env_name) or _ENV_CACHE.setdefault(
         job.env_name, make_environment(job.env_name)
     )
     task = env.task(job.index, job.seed, job.train)
-    return job.index, attempt_demonstration(env, task, [job.seed, job.index])
+    return job.index, attempt_demonstration(env, task, [job.seed, job.index], noise=job.noise)
 
 
 _ENV_CACHE: dict[str, Environment] = {}
 
 
 def collect_attempts(
-    env_name: str, n: int, seed: int, workers: int = 1, train: bool = True
+    env_name: str, n: int, seed: int, workers: int = 1, train: bool = True, noise: float = 0.0
 ) -> Iterator[tuple[int, DemoAttempt]]:
     """Yield (task index, attempt) for tasks 0..n-1 of the seeded stream, in order; a
     failed attempt says why (exception, or the goal atoms missing at the horizon).
@@ -53,7 +53,7 @@ def collect_attempts(
     grow with ``n``; ``workers`` is capped at the CPU count (:mod:`bpns.pools`)."""
     if n < 0:
         raise ValueError(f"number of demonstrations must be >= 0, got {n}")
-    jobs = (DemoJob(env_name, seed, i, train) for i in range(n))
+    jobs = (DemoJob(env_name, seed, i, train, noise) for i in range(n))
     workers = capped_workers(workers)
     if workers <= 1:
         yield from map(_attempt_one, jobs)
@@ -63,10 +63,10 @@ def collect_attempts(
 
 
 def collect_demonstrations(
-    env_name: str, n: int, seed: int, workers: int = 1, train: bool = True
+    env_name: str, n: int, seed: int, workers: int = 1, train: bool = True, noise: float = 0.0
 ) -> Iterator[tuple[int, Demonstration | None]]:
     """Yield (task index, demo or None) for tasks 0..n-1 of the seeded stream, in order."""
-    for index, attempt in collect_attempts(env_name, n, seed, workers, train):
+    for index, attempt in collect_attempts(env_name, n, seed, workers, train, noise):
         yield index, attempt.demo
 
 

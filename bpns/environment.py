@@ -2,17 +2,91 @@
 
 bpns never imports a simulator or names a domain: an environment declares its types,
 predicates (and which of them are contact-related, for segmentation), action bounds,
-task distributions and its exact transition function ``simulate``.
+task distributions and its exact transition function ``simulate``. What it may offer
+beyond that (planning and learning defaults, hand-written or given skills) it declares in
+one :class:`Capabilities` value, so bpns reads declarations instead of probing for
+attributes.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Hashable, Iterator, Sequence
+from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from bpns.structs import Predicate, State, Task, Type
+from bpns.structs import GivenSkill, Predicate, Skill, State, Task, Type
+
+
+def _frozen(mapping: Mapping[str, object]) -> Mapping[str, object]:
+    return MappingProxyType(dict(mapping))
+
+
+@dataclass(frozen=True)
+class Capabilities:
+    """The optional part of the contract, declared in one place (``env.capabilities``).
+
+    planning_defaults: ``PlanningConfig`` fields this domain plans with unless the user
+                       says otherwise, e.g. the paper's ``{"n_abstract": 1000}`` where many
+                       abstract plans are not refinable.
+    learning_defaults: ``LearningConfig`` fields, e.g. ``{"near_goal_scale": 0.01}`` where
+                       the demonstrator switches near its goals.
+    oracle_skills:     makes the hand-written skills (``--approach oracle``); None: none.
+    given_skills:      makes the skills learning keeps as given (``bpns.learning.given``);
+                       None: every skill is learned.
+    demo_noise:        DART noise scale of the scripted demonstrations
+                       (``bpns.demo_attempts.ActionNoise``); 0.0: plain demonstrations.
+    default_camera:    the camera videos use unless told (e.g. one that follows a mobile
+                       robot, which leaves a fixed camera's view).
+    """
+
+    planning_defaults: Mapping[str, object] = field(default_factory=dict)
+    learning_defaults: Mapping[str, object] = field(default_factory=dict)
+    oracle_skills: Callable[[], Sequence[Skill]] | None = None
+    given_skills: Callable[[], Sequence[GivenSkill]] | None = None
+    demo_noise: float = 0.0
+    default_camera: str = "overview"
+
+    def __post_init__(self) -> None:  # read-only: one declaration shared by every instance
+        if not 0.0 <= self.demo_noise < float("inf"):
+            raise ValueError(f"demo_noise must be finite and >= 0, got {self.demo_noise}")
+        object.__setattr__(self, "planning_defaults", _frozen(self.planning_defaults))
+        object.__setattr__(self, "learning_defaults", _frozen(self.learning_defaults))
+
+    @property
+    def has_oracle_skills(self) -> bool:
+        return self.oracle_skills is not None
+
+
+# What the optional part of the contract was before ``Capabilities``: attributes of the
+# environment itself. An environment still declaring one would have it silently ignored.
+MOVED_TO_CAPABILITIES = ("planning_defaults", "learning_defaults", "oracle_skills", "given_skills")
+
+
+def declaration_problem(env: object) -> str | None:
+    """Why ``env`` does not declare its optional part as this contract asks, naming the
+    fix (None if it does). The registry refuses such an environment, and
+    ``bpns check-env`` reports it."""
+    name = getattr(env, "name", type(env).__name__)
+    moved = [a for a in MOVED_TO_CAPABILITIES if hasattr(env, a)]
+    if moved:
+        fields = ", ".join(f"{a}=..." for a in moved)
+        return (
+            f"environment {name!r} declares {', '.join(moved)} as attributes: declare "
+            f"`capabilities = Capabilities({fields})` (bpns.environment) instead; "
+            "see docs/NEW_TASK.md"
+        )
+    missing = [a for a in ("capabilities", "contact_settle_steps") if not hasattr(env, a)]
+    if missing:
+        return (
+            f"environment {name!r} lacks {', '.join(missing)} of bpns.environment.Environment "
+            "(MujocoEnv provides both); see docs/NEW_TASK.md"
+        )
+    if not isinstance(env.capabilities, Capabilities):  # type: ignore[attr-defined]
+        return f"environment {name!r}: capabilities must be a bpns.environment.Capabilities"
+    return None
 
 
 @runtime_checkable
@@ -32,19 +106,16 @@ class Environment(Protocol):
         """Predicates whose truth changes mark skill boundaries (paper §4.1)."""
         ...
 
-    # Optional: contact changes closer than this many steps are one physical event for
-    # segmentation (a release that bounces, a touch-down a step after letting go).
-    # ``contact_settle_steps: int``
-    # Optional: PlanningConfig fields this domain plans with by default, e.g. the
-    # paper's ``{"n_abstract": 1000}`` where many abstract plans are not refinable.
-    # ``planning_defaults: Mapping[str, object]``
-    # Optional: LearningConfig fields this domain learns with by default, e.g.
-    # ``{"near_goal_scale": 0.01}`` where the demonstrator switches near its goals.
-    # ``learning_defaults: Mapping[str, object]``
-    # Optional: the camera videos use unless told (``default_camera: str``, e.g. one that
-    # follows a mobile robot); ``perturbed(spec) -> Environment`` (the same environment
-    # under a ``bpns.perturbations.Perturbation``) and ``observe(state) -> State`` (what
-    # policies see, e.g. noisy features). ``mj_envs.MujocoEnv`` provides all three.
+    # Contact changes closer than this many steps are one physical event for segmentation
+    # (a release that bounces, a touch-down a step after letting go); 1 is the paper's
+    # literal segmentation.
+    contact_settle_steps: int
+    # Defaults and skills the environment offers beyond this protocol (all optional).
+    capabilities: Capabilities
+    # Optional methods (``mj_envs.MujocoEnv`` provides both): ``perturbed(spec) ->
+    # Environment``, the same environment under a ``bpns.perturbations.Perturbation``
+    # (``bpns eval --perturb``), and ``observe(state) -> State``, what policies see of a
+    # state (e.g. noisy features).
 
     @property
     def goal_predicates(self) -> frozenset[Predicate]: ...

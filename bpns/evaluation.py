@@ -69,6 +69,12 @@ class TaskOutcome:
     actions: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
     rollout: Rollout | None = field(repr=False, default=None)
 
+    @property
+    def sim_steps_per_step(self) -> float:
+        """Simulated control steps spent while solving per action of the final plan
+        (1.0: nothing simulated in vain); NaN unless solved with at least one action."""
+        return self.sim_steps / self.num_actions if self.solved and self.num_actions else math.nan
+
     def to_json(self) -> dict[str, Any]:
         d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         del d["actions"], d["rollout"]
@@ -117,6 +123,13 @@ class EvalReport:
         return statistics.fmean(times) if times else math.nan
 
     @property
+    def median_sim_steps_per_step(self) -> float:
+        """Median over solved tasks of :attr:`TaskOutcome.sim_steps_per_step`: how much
+        simulation planning wastes (the oracle's skills set the floor); NaN if none."""
+        ratios = [r for o in self.outcomes if math.isfinite(r := o.sim_steps_per_step)]
+        return statistics.median(ratios) if ratios else math.nan
+
+    @property
     def mean_nodes(self) -> float:
         """Mean abstract-search nodes created over all tasks."""
         return statistics.fmean(o.nodes_created for o in self.outcomes) if self.outcomes else 0.0
@@ -147,6 +160,7 @@ class EvalReport:
                 "median_seconds": _finite_or_none(self.median_seconds),
                 "mean_seconds": _finite_or_none(self.mean_seconds),
                 "mean_nodes_created": self.mean_nodes,
+                "median_sim_steps_per_step": _finite_or_none(self.median_sim_steps_per_step),
                 "failures": self.failures,
             },
             "tasks": [o.to_json() for o in self.outcomes],
@@ -159,7 +173,7 @@ def _finite_or_none(x: float) -> float | None:
 
 TABLE_HEADER = (
     "| Approach | Demos | Solved | Median time (s) | Mean time (s) | Nodes created "
-    "| Learning time (s) |\n|---|---:|---:|---:|---:|---:|---:|"
+    "| Sim steps / plan step | Learning time (s) |\n|---|---:|---:|---:|---:|---:|---:|---:|"
 )
 
 
@@ -171,12 +185,14 @@ def table_row(report: EvalReport) -> str:
         f"| {report.label} | {report.num_demos if report.num_demos is not None else '–'} "
         f"| {report.num_solved}/{report.num_tasks} ({report.solved_percent:.1f}%) "
         f"| {num(report.median_seconds, '.2f')} | {num(report.mean_seconds, '.2f')} "
-        f"| {report.mean_nodes:.1f} | {num(report.learning_seconds, '.1f')} |"
+        f"| {report.mean_nodes:.1f} | {num(report.median_sim_steps_per_step, '.1f')} "
+        f"| {num(report.learning_seconds, '.1f')} |"
     )
 
 
 def markdown_table(reports: Sequence[EvalReport]) -> str:
-    """One row per report; times are over solved tasks, nodes are means over all tasks."""
+    """One row per report; times and simulated steps per plan step are medians over
+    solved tasks, nodes are means over all tasks."""
     return "\n".join([TABLE_HEADER, *(table_row(r) for r in reports)]) + "\n"
 
 

@@ -139,10 +139,9 @@ class SkillExecutor:
         # every ground contact-related atom over the task's objects (segmentation's set)
         self.contact_watch: list = []
         if config.end_on_contact_change:
-            contact = getattr(env, "contact_predicates", frozenset())
             self.contact_watch = [
                 (p.classifier, objs)
-                for p in sorted(contact)
+                for p in sorted(env.contact_predicates)
                 for objs in object_tuples(task.init.objects, p.types)
             ]
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from importlib.metadata import entry_points
 
-from bpns.environment import Environment
+from bpns.environment import Environment, declaration_problem
 
 GROUP = "bpns.environments"
 
@@ -18,6 +18,12 @@ GROUP = "bpns.environments"
 class UnknownEnvironmentError(KeyError):
     def __str__(self) -> str:
         return str(self.args[0])
+
+
+class EnvironmentDeclarationError(UnknownEnvironmentError):
+    """The named environment exists but declares its optional part the old way (or not
+    at all); the message names the fix. A subclass so that every caller that reports an
+    unknown name as one line reports this alike."""
 
 
 def environment_names() -> list[str]:
@@ -29,4 +35,7 @@ def make_environment(name: str) -> Environment:
     if not matches:
         known = ", ".join(environment_names()) or "none installed"
         raise UnknownEnvironmentError(f"unknown environment {name!r}; known: {known}")
-    return matches[0].load()()
+    env = matches[0].load()()
+    if problem := declaration_problem(env):
+        raise EnvironmentDeclarationError(problem)
+    return env

@@ -9,11 +9,16 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from bpns.atomic import atomic_path
 from bpns.environment import Environment
 from bpns.evaluation import EvalReport, TaskOutcome, save_plans
 from bpns.failures import MEANING
 from bpns.perturbations import Perturbation, perturbed
-from bpns.rollout_files import rollouts_name, save_rollouts
+from bpns.pools import make_pool
+from bpns.registry import make_environment
+from bpns.rollout_files import demonstration_of, rollouts_name, save_rollouts
+from bpns.rollouts import Rollout
+from bpns.video import render_rollout
 
 
 def solved_line(report: EvalReport) -> str:
@@ -33,8 +38,6 @@ def write_results(
     """results.json (every report), results.md (``table``) and one plans file per
     approach in ``out`` (created if missing), each written atomically; given ``env``,
     also one rollouts file per approach (:mod:`bpns.rollout_files`)."""
-    from bpns.atomic import atomic_path
-
     out.mkdir(parents=True, exist_ok=True)
     with atomic_path(out / "results.json") as tmp:
         tmp.write_text(json.dumps([r.to_json() for r in reports], indent=2, allow_nan=False) + "\n")
@@ -142,8 +145,6 @@ def render_longest_solved(
     ``video`` with captions and a PNG of its end; None when nothing was solved and no
     task was named. ``camera`` defaults to the environment's. Raises
     ``bpns.video.VideoError`` when rendering fails, ValueError for a task not evaluated."""
-    from bpns.pools import make_pool
-
     if task is None:
         outcome = longest_solved(report)
         if outcome is None:
@@ -173,11 +174,6 @@ def _render_task(
     png: Path,
 ) -> int:
     """Re-simulate ``outcome``'s rollout from its task of the seeded stream and render it."""
-    from bpns.registry import make_environment
-    from bpns.rollout_files import demonstration_of
-    from bpns.rollouts import Rollout
-    from bpns.video import render_rollout
-
     env = perturbed(make_environment(env_name), physics)
     task = env.task(outcome.index, seed, train)
     rollout = outcome.rollout if outcome.rollout is not None else Rollout(outcome.actions)

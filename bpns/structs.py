@@ -298,6 +298,18 @@ class Skill:
 
 
 @dataclass(frozen=True)
+class GivenSkill:
+    """A skill supplied by the environment (``bpns.learning.given``: how learning keeps
+    it). ``signature`` names its parameters (in the order its policy and sampler take
+    objects) and the effects that identify it."""
+
+    name: str
+    signature: STRIPSOperator
+    policy: SubgoalPolicy
+    sampler: SubgoalSampler
+
+
+@dataclass(frozen=True)
 class Task:
     """<objects, initial state, goal, horizon>; objects are those of ``init``."""
 
@@ -315,11 +327,19 @@ class Task:
 
 @dataclass(frozen=True, eq=False)
 class Demonstration:
-    """A solved task: states s_0..s_k and actions a_1..a_k with s_i = f(s_{i-1}, a_i)."""
+    """A solved task: states s_0..s_k and actions a_1..a_k with s_i = f(s_{i-1}, a_i).
+
+    ``expert_actions`` (same shape as ``actions``) are what the demonstrator commanded
+    when the executed ``actions`` were perturbed on purpose (DART-style noise injection,
+    :mod:`bpns.demo_attempts`); None when they are the executed ones. Replay uses
+    ``actions``; imitation learns ``labels``: the demonstrator's correction at every
+    visited state, including the ones off its own path.
+    """
 
     task: Task
     states: tuple[State, ...]
     actions: np.ndarray  # shape (k, action_dim)
+    expert_actions: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if len(self.states) != len(self.actions) + 1:
@@ -327,6 +347,18 @@ class Demonstration:
                 f"a demonstration needs len(states) == len(actions) + 1, "
                 f"got {len(self.states)} states and {len(self.actions)} actions"
             )
+        if self.expert_actions is not None and np.shape(self.expert_actions) != np.shape(
+            self.actions
+        ):
+            raise ValueError(
+                f"expert_actions must have the shape of actions {np.shape(self.actions)}, "
+                f"got {np.shape(self.expert_actions)}"
+            )
+
+    @property
+    def labels(self) -> np.ndarray:
+        """The actions to imitate: the demonstrator's own commands."""
+        return self.actions if self.expert_actions is None else self.expert_actions
 
 
 @dataclass(frozen=True, eq=False)

@@ -48,8 +48,8 @@ class VideoError(RuntimeError):
 
 
 def default_camera(env: Environment) -> str:
-    """The camera an environment's videos use unless told (``default_camera``)."""
-    return str(getattr(env, "default_camera", "overview"))
+    """The camera an environment's videos use unless told (its capabilities say)."""
+    return env.capabilities.default_camera
 
 
 def render_video(

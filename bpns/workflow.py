@@ -44,11 +44,13 @@ class DemosWritten:
     failed: tuple[int, ...]  # task indices the demonstrator failed on
     seconds: float
     why: tuple[str, ...] = ()  # for each failed task: why (DemoAttempt.explain)
+    noise: float = 0.0  # DART noise scale the demonstrations were collected with
 
     def lines(self) -> list[str]:
+        noisy = f" (DART noise {self.noise:g})" if self.noise else ""
         out = [
-            f"wrote {self.num_written} demonstrations of {self.env_name} to {self.path} in "
-            f"{self.seconds:.1f} s"
+            f"wrote {self.num_written} demonstrations of {self.env_name}{noisy} to {self.path} "
+            f"in {self.seconds:.1f} s"
             + (f"; the demonstrator failed on tasks {list(self.failed)}" if self.failed else "")
         ]
         for index, why in zip(self.failed, self.why, strict=False):
@@ -64,19 +66,27 @@ def collect_demos(
     workers: int = 1,
     progress: Progress = _no_progress,
     debug: bool = False,
+    noise: float | None = None,
 ) -> DemosWritten:
     """Run the scripted demonstrator on train tasks 0..num-1 and save the successes; say
-    why each failure failed (with ``debug``: its traceback and last abstract states)."""
+    why each failure failed (with ``debug``: its traceback and last abstract states).
+    ``noise``: DART noise scale (:class:`bpns.demo_attempts.ActionNoise`); None: the
+    environment's declared one."""
     from bpns.datasets import save_demonstrations
+    from bpns.demo_attempts import demo_noise_of
     from bpns.demos import collect_attempts
 
     failed: list[int] = []
     why: list[str] = []
     t0 = time.perf_counter()
+    noise = demo_noise_of(env) if noise is None else noise
 
     def successful():
         for index, attempt in progress(
-            collect_attempts(env.name, num, seed, workers), num, f"demos {env.name}", "task"
+            collect_attempts(env.name, num, seed, workers, noise=noise),
+            num,
+            f"demos {env.name}",
+            "task",
         ):
             if attempt.demo is None:
                 failed.append(index)
@@ -85,7 +95,9 @@ def collect_demos(
                 yield attempt.demo
 
     n = save_demonstrations(out, env, successful())
-    return DemosWritten(out, env.name, n, tuple(failed), time.perf_counter() - t0, tuple(why))
+    return DemosWritten(
+        out, env.name, n, tuple(failed), time.perf_counter() - t0, tuple(why), noise
+    )
 
 
 # -- replay -------------------------------------------------------------------------------

@@ -30,9 +30,6 @@ import mink
 import mujoco
 import numpy as np
 
-# Commanded pose layout inside the userdata slice the controller owns.
-POSE_SIZE = 7  # position (3) + orientation quaternion wxyz (4)
-
 
 @dataclass(frozen=True)
 class ControllerConfig:

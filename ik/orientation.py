@@ -28,8 +28,6 @@ import math
 
 import numpy as np
 
-Z_AXIS = np.array([0.0, 0.0, 1.0])
-
 # These run several times per control step (features and commands), so they work on
 # Python floats: numpy's per-call overhead on 3-vectors cost more than the maths.
 

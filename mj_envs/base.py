@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from bpns.environment import Capabilities
 from bpns.perturbations import NOMINAL, Perturbation
 from bpns.structs import GroundAtom, Object, Predicate, SimState, State, Task, Type
 from ik import ControllerConfig
@@ -51,11 +52,10 @@ class MujocoEnv(abc.ABC):
     # Segmentation merges contact changes closer than this (bpns.learning.segmentation):
     # at 20 Hz a release or touch-down settles within three control steps.
     contact_settle_steps: int = 4
+    # Defaults and skills beyond the required protocol (bpns.environment.Capabilities).
+    capabilities: Capabilities = Capabilities()
     # physics the tasks run under (``perturbed``); mj_envs.perturbation says what changes
     perturbation: Perturbation = NOMINAL
-    # the camera videos use by default (a domain whose robot leaves the overview's frame
-    # declares a camera that follows it)
-    default_camera: str = "overview"
 
     # -- what a domain declares -----------------------------------------------------
     @property

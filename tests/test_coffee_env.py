@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from bpns.abstraction import abstract
+from bpns.approaches.bilevel import oracle_skills
 from bpns.datasets import load_demonstrations, save_demonstrations
 from bpns.demos import replay, run_demonstrator
 from bpns.registry import make_environment as make_env
@@ -216,7 +217,7 @@ def test_train_tasks_have_one_or_two_cups_and_eval_tasks_two_or_three(env):
         "CupFilled",
         "ButtonPressed",
     }
-    assert env.planning_defaults == {"n_abstract": 1000, "max_state_repeats": 1}
+    assert env.capabilities.planning_defaults == {"n_abstract": 1000, "max_state_repeats": 1}
 
 
 def test_wrist_and_tilt_actions_turn_the_hand(env):
@@ -298,12 +299,14 @@ def test_coffee_gym_env_passes_check_env():
 
 def test_oracle_skills_solve_an_eval_task_needing_a_twist_through_the_planner(env):
     from bpns.planning.bilevel import plan
-    from mj_envs.domains.coffee.skills import PLANNING_CONFIG
+    from bpns.planning.config import planning_config_for
 
     task = _task_with(
         env, False, lambda t: len(t.goal) >= 2 and _rotation(t) > HANDLE_RULE + 0.2, seed=1
     )
-    result = plan(task, env.oracle_skills(), env, PLANNING_CONFIG, np.random.default_rng(0))
+    # the domain's declared planning defaults, with the oracle's few samples per step
+    config = planning_config_for(env, n_samples=3, timeout=120.0, max_skill_horizon=250)
+    result = plan(task, oracle_skills(env), env, config, np.random.default_rng(0))
     assert result.success, result.reason
     names = [op.name for op in result.skeleton.operators]
     assert names[:2] == ["Twist", "PickPotAfterTwist"]

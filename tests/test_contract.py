@@ -12,6 +12,7 @@ import pytest
 import mj_envs  # noqa: F401  (registers the Gymnasium ids)
 from bpns.cli import main
 from bpns.contract import ContractConfig, check_environment, run_checks
+from bpns.environment import Capabilities
 from bpns.registry import environment_names, make_environment
 from bpns.structs import Predicate
 from mj_envs.base import TaskLayout
@@ -258,3 +259,42 @@ def test_check_env_cli_exit_codes(capsys, monkeypatch):
 
 def test_layout_type_is_public():  # TaskLayout stays importable for task authors
     assert TaskLayout.__name__ == "TaskLayout"
+
+
+class OldStyle(CoverEnv):
+    """Declares its planning defaults the way the contract did before ``Capabilities``."""
+
+    planning_defaults = {"n_abstract": 1000}
+
+
+def test_optional_declarations_made_the_old_way_are_refused_with_the_fix_named():
+    (v,) = _violations(OldStyle(), "declarations")
+    assert "declares planning_defaults as attributes" in v
+    assert "capabilities = Capabilities(planning_defaults=...)" in v
+
+
+class MisspeltDefaults(CoverEnv):
+    capabilities = Capabilities(planning_defaults={"n_abstrct": 3})
+
+
+def test_declared_defaults_that_are_no_config_fields_are_a_violation():
+    (v,) = _violations(MisspeltDefaults(), "declarations")
+    assert "planning defaults are not valid" in v and "n_abstrct" in v
+
+
+def test_capabilities_are_read_only_declarations():
+    caps = Capabilities(planning_defaults={"n_abstract": 7})
+    with pytest.raises(TypeError):
+        caps.planning_defaults["n_abstract"] = 8  # type: ignore[index]
+    assert not caps.has_oracle_skills and CoverEnv().capabilities.has_oracle_skills
+
+
+def test_the_registry_refuses_an_environment_declared_the_old_way(monkeypatch):
+    from importlib.metadata import EntryPoint
+
+    import bpns.registry as registry
+
+    old = EntryPoint("old_style", f"{__name__}:OldStyle", registry.GROUP)
+    monkeypatch.setattr(registry, "entry_points", lambda group: [old])
+    with pytest.raises(registry.UnknownEnvironmentError, match="Capabilities"):
+        registry.make_environment("old_style")

@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from bpns.approaches import SkillSource, approach_names, get_approach
+from bpns.approaches.bilevel import oracle_skills
+from bpns.environment import Capabilities
 from bpns.evaluation import (
     EvalReport,
     TaskOutcome,
@@ -105,9 +107,12 @@ def test_environments_declare_planning_defaults_that_cli_settings_override():
     from bpns.planning.config import planning_config_for
 
     class Env:
-        planning_defaults = {"n_abstract": 1000}
+        capabilities = Capabilities(planning_defaults={"n_abstract": 1000})
 
-    assert planning_config_for(object()) == PlanningConfig()
+    class Plain:
+        capabilities = Capabilities()
+
+    assert planning_config_for(Plain()) == PlanningConfig()
     assert planning_config_for(Env(), timeout=5.0).n_abstract == 1000
     config = planning_config_for(Env(), n_abstract=3, n_samples=None)
     assert config.n_abstract == 3 and config.n_samples == PlanningConfig().n_samples
@@ -117,7 +122,11 @@ def test_environments_declare_learning_defaults_that_cli_settings_override():
     from bpns.learning.config import LearningConfig, learning_config_for
     from bpns.registry import make_environment as make_env
 
-    assert learning_config_for(object()) == LearningConfig()
+    class Plain:
+        contact_settle_steps = 1
+        capabilities = Capabilities()
+
+    assert learning_config_for(Plain()) == LearningConfig()
     sb = make_env("stick_button")
     assert learning_config_for(sb).near_goal_scale == 0.01
     assert learning_config_for(sb).settle_steps == sb.contact_settle_steps
@@ -136,7 +145,7 @@ def test_failed_tasks_are_explained_step_by_step(cover_env):
     from bpns.planning.config import PlanningConfig
     from bpns.reporting import explain_lines
 
-    pick, place = cover_env.oracle_skills()
+    pick, place = oracle_skills(cover_env)
     # a pick that aims 30 cm above the block: the grasp never happens
     far = dataclasses.replace(pick, sampler=lambda s, o, r: pick.sampler(s, o, r) + 0.3)
     config = PlanningConfig(n_abstract=2, n_samples=2, timeout=60.0, max_skill_horizon=40)

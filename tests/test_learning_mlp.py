@@ -53,20 +53,6 @@ def test_hand_written_gradients_match_autograd(loss):
     np.testing.assert_allclose(net.grad.numpy(), flat.grad.numpy(), rtol=1e-9, atol=1e-12)
 
 
-def test_flat_adam_matches_torch_adam():
-    net = mlp._FlatMLP((3, 4, 2), seed=0, dtype=torch.float64)
-    param = net.flat.clone().requires_grad_(True)
-    ref = torch.optim.Adam([param], lr=1e-2)
-    ours = mlp._Adam(net.flat, lr=1e-2)
-    gen = torch.Generator().manual_seed(0)
-    for _ in range(5):
-        g = torch.randn(net.flat.shape, generator=gen, dtype=torch.float64)
-        param.grad = g.clone()
-        ref.step()
-        ours.step(g)
-    np.testing.assert_allclose(net.flat.numpy(), param.detach().numpy(), rtol=1e-12, atol=1e-14)
-
-
 def test_numpy_inference_matches_torch_forward():
     x, y = _data()
     reg = mlp.train_regressor(x, y, FAST, seed=0)

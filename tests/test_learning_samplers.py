@@ -162,3 +162,40 @@ def test_a_skill_whose_scope_never_changes_samples_the_current_scope():
     state = toy.point_state([0.2, 0.3])
     goal = sampler(state, (toy.POINT_OBJ,), np.random.default_rng(0))
     np.testing.assert_array_equal(goal, [0.2, 0.3])
+
+
+def test_linear_base_recovers_an_affine_subgoal_from_few_examples():
+    # the hand goes to the object plus a fixed offset: affine in the start state
+    from bpns.learning.samplers import LinearBase
+
+    rng = np.random.default_rng(0)
+    x = rng.uniform(-0.5, 0.5, size=(12, 4))
+    y = np.stack([x[:, 2] - x[:, 0] + 0.03, x[:, 3] - x[:, 1]], axis=1)
+    base = LinearBase.fit(x, y, ridge=1e-6)
+    unseen = rng.uniform(-0.7, 0.7, size=(50, 4))  # also beyond the fitted range
+    truth = np.stack([unseen[:, 2] - unseen[:, 0] + 0.03, unseen[:, 3] - unseen[:, 1]], axis=1)
+    np.testing.assert_allclose(base(unseen), truth, atol=1e-4)
+    back = LinearBase.from_arrays(base.to_arrays("linear/"), "linear/")
+    np.testing.assert_array_equal(back(unseen), base(unseen))
+
+
+def test_generator_with_linear_base_is_saved_loaded_and_its_mean_is_base_plus_network():
+    from bpns.learning.samplers import train_sampler
+
+    rng = np.random.default_rng(1)
+    gen_x = rng.uniform(-1, 1, size=(40, 2))
+    gen_y = gen_x @ np.array([[1.0], [-2.0]]) + 0.5
+    dims = ScopeDims(2, np.array([0, 1]), np.array([0]))
+    cls_data = np.concatenate((gen_x, gen_y, np.ones((40, 1))), axis=1)
+    net = MLPConfig(num_steps=300, batch_size=32)
+    sampler = train_sampler(gen_x, gen_y, cls_data, dims, net, net, 0, linear_base=True)
+    assert sampler.base is not None
+    mean, _ = sampler.mean_std(np.array([0.3, 0.2]))
+    network_mean, _ = sampler._gen.mean_std(np.array([0.3, 0.2]))
+    np.testing.assert_allclose(mean, network_mean + sampler.base(np.array([0.3, 0.2])))
+    assert abs(mean[0] - (0.3 - 0.4 + 0.5)) < 0.05
+    back = LearnedSampler.from_arrays(sampler.to_arrays())
+    assert back.base is not None
+    np.testing.assert_array_equal(back.mean_std(np.array([0.3, 0.2]))[0], mean)
+    plain = train_sampler(gen_x, gen_y, cls_data, dims, net, net, 0, linear_base=False)
+    assert plain.base is None and "linear/w0" not in plain.to_arrays()

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bpns import video
-from bpns.approaches.bilevel import BilevelPlanning
+from bpns import reporting
+from bpns.approaches.bilevel import BilevelPlanning, oracle_skills
 from bpns.evaluation import EvalReport, solve_task
 from bpns.planning.config import PlanningConfig
 from bpns.reporting import render_longest_solved
@@ -18,7 +18,7 @@ def test_solved_task_video_is_rendered_outside_the_calling_process(
     cover_env, tmp_path, monkeypatch
 ):
     config = PlanningConfig(timeout=60.0)
-    approach = BilevelPlanning(cover_env, cover_env.oracle_skills(), config)
+    approach = BilevelPlanning(cover_env, oracle_skills(cover_env), config)
     outcome = solve_task(
         approach, cover_env.task(0, 7, False), 0, cover_env, 60.0, np.random.default_rng(0)
     )
@@ -28,7 +28,7 @@ def test_solved_task_video_is_rendered_outside_the_calling_process(
     def fail_here(*args, **kwargs):
         raise AssertionError("rendered in the calling process")
 
-    monkeypatch.setattr(video, "render_video", fail_here)  # the worker imports its own
+    monkeypatch.setattr(reporting, "render_rollout", fail_here)  # the worker imports its own
     made = render_longest_solved(cover_env, report, tmp_path / "solved.mp4", 7, False)
     if made is None:
         pytest.fail("nothing rendered")

@@ -8,9 +8,11 @@ import numpy as np
 import pytest
 
 from bpns.abstraction import abstract
+from bpns.approaches.bilevel import oracle_skills
 from bpns.datasets import load_demonstrations, save_demonstrations
 from bpns.demos import replay, run_demonstrator
 from bpns.planning.bilevel import plan
+from bpns.planning.config import planning_config_for
 from bpns.registry import make_environment as make_env
 from bpns.structs import Object, State, Task
 from mj_envs.domains.stick_button.behaviours import (
@@ -21,7 +23,7 @@ from mj_envs.domains.stick_button.behaviours import (
     move_action,
 )
 from mj_envs.domains.stick_button.rules import BUTTON, GRASPED, PRESSED, STICK_HEIGHT
-from mj_envs.domains.stick_button.skills import APPROACH_CLEARANCE, PLANNING_CONFIG
+from mj_envs.domains.stick_button.skills import APPROACH_CLEARANCE
 from mj_envs.parts.button import CAP_RADIUS, LATCH_DEPTH, PRESSED_RGBA
 from mj_envs.robots.panda import FINGERTIP_DROP
 
@@ -249,7 +251,10 @@ def test_oracle_skills_solve_an_eval_task_needing_hand_and_stick_through_the_pla
         False,
         lambda t: _has(t, far=True) and _has(t, far=False) and len(t.goal) == 3,
     )
-    result = plan(task, env.oracle_skills(), env, PLANNING_CONFIG, np.random.default_rng(0))
+    # the domain's declared planning defaults (N_abstract=1000) with few samples per step:
+    # oracle samplers seldom need a second try
+    config = planning_config_for(env, n_samples=1, timeout=60.0, max_skill_horizon=150)
+    result = plan(task, oracle_skills(env), env, config, np.random.default_rng(0))
     assert result.success, result.reason
     names = [op.name for op in result.skeleton.operators]
     assert any(n.startswith("RobotPress") for n in names)

@@ -12,6 +12,7 @@ import functools
 import numpy as np
 
 from bpns.abstraction import abstract
+from bpns.environment import Capabilities
 from bpns.learning.operators import learn_operators
 from bpns.learning.partition import partition_segments
 from bpns.learning.samplers import CurrentStateSampler
@@ -70,6 +71,8 @@ class ToyCoverEnv:
     """What the baselines' approaches use of an environment, for ToyCover."""
 
     name = "toy_cover"
+    contact_settle_steps = 1
+    capabilities = Capabilities()
     predicates = toy.PREDICATES
     goal_predicates = toy.PREDICATES
     contact_predicates = toy.CONTACT_PREDICATES

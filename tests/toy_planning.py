@@ -21,6 +21,7 @@ from collections.abc import Hashable, Iterable, Sequence
 
 import numpy as np
 
+from bpns.environment import Capabilities
 from bpns.planning.strips import GroundProblem
 from bpns.structs import (
     GroundAtom,
@@ -87,6 +88,8 @@ class ToyStickButton:
     """Environment protocol implementation; action = (dx, grip) in [-1, 1]^2."""
 
     name = "toy_stick_button"
+    contact_settle_steps = 1
+    capabilities = Capabilities()
 
     @property
     def types(self) -> frozenset[Type]:
@@ -315,6 +318,8 @@ class ToyLights:
     """Action i > 0.5 toggles light i (index feature); one action per light."""
 
     name = "toy_lights"
+    contact_settle_steps = 1
+    capabilities = Capabilities()
 
     def __init__(self, n: int) -> None:
         self.n = n

@@ -82,7 +82,7 @@ class SkillSource(str, enum.Enum):
     """What an approach is built from, besides the environment."""
 
     LEARNED = "learned"  # artifacts learned from demonstrations: a skills directory
-    ORACLE = "oracle"  # the environment's hand-written skills (``env.oracle_skills()``)
+    ORACLE = "oracle"  # the environment's hand-written skills (``env.capabilities.oracle_skills``)
     NONE = "none"  # nothing else
 
 
@@ -140,7 +140,7 @@ class ApproachEntry:
         """Build the approach for ``env``; ``skills_dir`` is required when it learns."""
         if self.skills is SkillSource.LEARNED and skills_dir is None:
             raise ValueError(f"approach {self.name!r} needs a skills directory")
-        if self.skills is SkillSource.ORACLE and not hasattr(env, "oracle_skills"):
+        if self.skills is SkillSource.ORACLE and not env.capabilities.has_oracle_skills:
             raise NoOracleSkillsError(f"environment {env.name!r} declares no oracle skills")
         return self.build(env, planning, None if skills_dir is None else Path(skills_dir))
 

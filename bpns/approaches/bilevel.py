@@ -19,6 +19,8 @@ from bpns.approaches.base import (
     with_timeout,
 )
 from bpns.environment import Environment
+from bpns.learning.artifacts import load_skills
+from bpns.learning.given import given_skills_of
 from bpns.planning.bilevel import PlanningStats, PlanResult, plan
 from bpns.planning.config import PlanningConfig
 from bpns.rollouts import REACHED, Rollout, rollout_of
@@ -84,7 +86,7 @@ def _explanation(stats: PlanningStats) -> dict:
 
 def oracle_skills(env: Environment) -> list[Skill]:
     """The environment's hand-written skills."""
-    make = getattr(env, "oracle_skills", None)
+    make = env.capabilities.oracle_skills
     if make is None:
         raise NoOracleSkillsError(f"environment {env.name!r} declares no oracle skills")
     return list(make())
@@ -92,9 +94,6 @@ def oracle_skills(env: Environment) -> list[Skill]:
 
 def learned_skills(env: Environment, skills_dir: str | Path) -> list[Skill]:
     """The skills saved in ``skills_dir``, bound to ``env``'s predicates and types."""
-    from bpns.learning.artifacts import load_skills
-    from bpns.learning.given import given_skills_of
-
     return list(load_skills(skills_dir, env.predicates, env.types, given_skills_of(env)).skills)
 
 

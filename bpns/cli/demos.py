@@ -9,6 +9,7 @@ from bpns.cli.common import (
     default_workers,
     env_by_name,
     nonnegative,
+    nonnegative_float,
     positive,
     print_lines,
     progress,
@@ -26,6 +27,13 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     p.add_argument("--workers", type=positive, default=default_workers())
     p.add_argument(
+        "--noise",
+        type=nonnegative_float,
+        help="DART noise injection: execute the demonstrator's action times "
+        "(1 + NOISE * N(0, 1)) per dimension and record its clean commands for imitation "
+        "(default: the environment's; 0: plain demonstrations, as in the paper)",
+    )
+    p.add_argument(
         "--debug",
         action="store_true",
         help="for each failed demonstration also print its traceback and last abstract states",
@@ -38,6 +46,8 @@ def run(args: argparse.Namespace) -> int:
     env = env_by_name(args.env)
     check_output_file(args.out, "--out", args.overwrite)
     workers = capped_to_cores(args.workers, "--workers")
-    written = collect_demos(env, args.num, args.seed, args.out, workers, progress, debug=args.debug)
+    written = collect_demos(
+        env, args.num, args.seed, args.out, workers, progress, debug=args.debug, noise=args.noise
+    )
     print_lines(written)
     return 0 if written.num_written else 1

@@ -129,8 +129,9 @@ def run(args: argparse.Namespace) -> int:
         perturbed(env, perturbation)  # an environment without perturbations says so now
     except PerturbationError as err:
         raise UserError(f"--perturb: {err}") from None
-    if any(a.skills is SkillSource.ORACLE for a in approaches) and not hasattr(
-        env, "oracle_skills"
+    if (
+        any(a.skills is SkillSource.ORACLE for a in approaches)
+        and not env.capabilities.has_oracle_skills
     ):
         raise UserError(f"environment {env.name!r} declares no oracle skills")
     try:

@@ -61,10 +61,23 @@ def configure(p: argparse.ArgumentParser) -> None:
         "parameters such as the robot holding the pressing stick)",
     )
     p.add_argument(
+        "--no-share",
+        action="store_true",
+        help="each skill's networks learn from its own operator's segments only, as in the "
+        "paper (default: also from operators whose add effects include its own, the "
+        "variants of one motion that segmentation split)",
+    )
+    p.add_argument(
+        "--no-linear-base",
+        action="store_true",
+        help="subgoal generators are networks alone, as in the paper (default: a "
+        "ridge-regression map of the start state plus the network's residual)",
+    )
+    p.add_argument(
         "--settle-steps",
         type=positive,
         help="contact changes closer than this are one event "
-        "(default: the environment's contact_settle_steps, else 1)",
+        "(default: the environment's contact_settle_steps)",
     )
     p.add_argument(
         "--index-names",
@@ -123,6 +136,8 @@ def run(args: argparse.Namespace) -> int:
         min_segment_fraction=args.min_segment_fraction,
         use_subgoals=False if args.no_subgoals else None,
         anchor_parameters=False if args.no_anchor else None,
+        share_effect_data=False if args.no_share else None,
+        linear_sampler_base=False if args.no_linear_base else None,
         settle_steps=args.settle_steps,
         index_names=True if args.index_names else None,
     )

@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     demos_path, skills_dir = out / "demos.h5", out / "skills"
     video = out / "eval_solved.mp4"
     names = list(dict.fromkeys(args.approach))
-    if not hasattr(env, "oracle_skills") and "oracle" in names:
+    if not env.capabilities.has_oracle_skills and "oracle" in names:
         names.remove("oracle")
     check_output_dir(out, "--out")
     check_output_file(demos_path, "--out", args.overwrite)

@@ -54,6 +54,8 @@ class SeedResult:
     nodes_created: float
     learning_seconds: float | None
     solved_seconds: tuple[float, ...]  # test time of every solved task
+    # median over solved tasks of simulated steps per action of the final plan
+    sim_steps_per_step: float | None = None
 
     @classmethod
     def from_record(cls, record: dict[str, Any]) -> SeedResult:
@@ -67,10 +69,22 @@ class SeedResult:
             nodes_created=r["mean_nodes_created"],
             learning_seconds=r.get("learning_seconds"),
             solved_seconds=tuple(t["seconds"] for t in r["tasks"] if t["solved"]),
+            sim_steps_per_step=_median_sim_ratio(r["tasks"]),
         )
 
     def fraction_solved_within(self, seconds: float) -> float:
         return sum(t <= seconds for t in self.solved_seconds) / max(1, self.num_tasks)
+
+
+def _median_sim_ratio(tasks: Iterable[dict[str, Any]]) -> float | None:
+    """From the per-task records (so older cells have it too); records without step
+    counts are left out."""
+    ratios = [
+        t["sim_steps"] / t["num_actions"]
+        for t in tasks
+        if t["solved"] and t.get("num_actions") and "sim_steps" in t
+    ]
+    return statistics.median(ratios) if ratios else None
 
 
 @dataclass(frozen=True)
@@ -106,6 +120,10 @@ class Row:
     def learning_seconds(self) -> Stat:
         return Stat.of(s.learning_seconds for s in self.seeds)
 
+    @property
+    def sim_steps_per_step(self) -> Stat:
+        return Stat.of(s.sim_steps_per_step for s in self.seeds)
+
     def to_json(self) -> dict[str, Any]:
         return {
             "env": self.env,
@@ -120,6 +138,7 @@ class Row:
             "mean_seconds": self.mean_seconds.to_json(),
             "nodes_created": self.nodes_created.to_json(),
             "learning_seconds": self.learning_seconds.to_json(),
+            "sim_steps_per_step": self.sim_steps_per_step.to_json(),
         }
 
 
@@ -157,8 +176,8 @@ def _seed(result: SeedResult) -> int:
 
 TABLE_HEADER = (
     "| Environment | Approach | Demos | Seeds | Solved (%) | Median time (s) | Mean time (s) "
-    "| Nodes created | Learning time (s) |\n"
-    "|---|---|---:|---:|---:|---:|---:|---:|---:|"
+    "| Nodes created | Sim steps / plan step | Learning time (s) |\n"
+    "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"
 )
 
 
@@ -178,6 +197,7 @@ def markdown_table(rows: Sequence[Row]) -> str:
             f"| {row.env} | {row.label} | {'–' if row.demos is None else row.demos} {level}"
             f"| {len(row.seeds)} | {row.solved_percent.format('.1f')} "
             f"| {row.median_seconds.format('.2f')} | {row.mean_seconds.format('.2f')} "
-            f"| {row.nodes_created.format('.1f')} | {row.learning_seconds.format('.1f')} |"
+            f"| {row.nodes_created.format('.1f')} | {row.sim_steps_per_step.format('.1f')} "
+            f"| {row.learning_seconds.format('.1f')} |"
         )
     return "\n".join(lines) + "\n"

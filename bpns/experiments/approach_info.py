@@ -11,11 +11,14 @@ goes through ``bpns.evaluation`` by name.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bpns.approaches import SkillSource, get_approach
 from bpns.approaches import approach_names as _registered
 from bpns.planning.config import PlanningConfig
+
+if TYPE_CHECKING:
+    from bpns.environment import Environment
 
 
 def approach_names() -> tuple[str, ...]:
@@ -32,14 +35,14 @@ def needs_baselines(name: str) -> bool:
 
 
 def uses_environment_skills(name: str) -> bool:
-    """Plans with the environment's hand-written skills (needs ``env.oracle_skills``)."""
+    """Plans with the environment's hand-written skills (``capabilities.oracle_skills``)."""
     return get_approach(name).skills is SkillSource.ORACLE
 
 
-def available_on(name: str, env: object) -> bool:
+def available_on(name: str, env: Environment) -> bool:
     """Can ``name`` run on ``env``? Approaches with hand-written skills need the
     environment to declare them."""
-    return not uses_environment_skills(name) or hasattr(env, "oracle_skills")
+    return not uses_environment_skills(name) or env.capabilities.has_oracle_skills
 
 
 def planning_config(name: str, base: PlanningConfig) -> PlanningConfig:

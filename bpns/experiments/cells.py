@@ -17,6 +17,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from bpns.demo_attempts import demo_noise_of
 from bpns.environment import Environment
 from bpns.experiments import approach_info
 from bpns.experiments.presets import SweepConfig
@@ -48,6 +49,7 @@ class Cell:
     baselines: bool = False  # skills cells: also learn the paper's baselines beside them
     planning: PlanningConfig | None = None  # eval cells
     eval_tasks: int | None = None  # eval cells
+    demo_noise: float = 0.0  # demos cells: DART noise scale (bpns.demo_attempts)
     perturbation: Perturbation | None = None  # eval cells of a perturbation axis
     perturb_axis: str | None = None  # the axis' perturbation name
 
@@ -70,6 +72,8 @@ class Cell:
         s: dict[str, Any] = {"kind": self.kind, "env": self.env, "seed": self.seed}
         if self.kind == DEMOS:
             s["train_tasks"] = self.count
+            if self.demo_noise:  # (absent when 0: cells stored before keep matching)
+                s["demo_noise"] = self.demo_noise
         elif self.kind == SKILLS:
             s["demo_count"] = self.count
             s["learning"] = dataclasses.asdict(self.learning)  # type: ignore[arg-type]
@@ -115,7 +119,7 @@ def plan_cells(config: SweepConfig, envs: Mapping[str, Environment]) -> list[Cel
         env = envs[name]
         base = planning_config_for(env, timeout=config.timeout)
         for seed in config.seeds:
-            demo_cell = Cell(DEMOS, name, seed, config.max_demos)
+            demo_cell = Cell(DEMOS, name, seed, config.max_demos, demo_noise=demo_noise_of(env))
             demos.append(demo_cell)
             for approach in config.approaches:
                 if approach_info.uses_learned_skills(approach):

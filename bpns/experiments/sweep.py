@@ -28,6 +28,7 @@ from bpns.experiments.cells import DEMOS, EVAL, SKILLS, Cell, plan_cells
 from bpns.experiments.presets import SweepConfig
 from bpns.experiments.store import FORMAT, CellStore, CellStoreError
 from bpns.experiments.work import CellJob, CellOutcome
+from bpns.registry import make_environment
 
 
 @dataclass
@@ -45,8 +46,6 @@ class SweepSummary:
 
 
 def make_environments(names: Sequence[str]) -> dict[str, Environment]:
-    from bpns.registry import make_environment
-
     return {name: make_environment(name) for name in names}
 
 

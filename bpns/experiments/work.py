@@ -66,7 +66,10 @@ def _collect(job: CellJob) -> dict[str, Any]:
     failed: list[int] = []
 
     def successful():
-        for index, demo in collect_demonstrations(env.name, cell.count, cell.seed, workers=1):
+        demos = collect_demonstrations(
+            env.name, cell.count, cell.seed, workers=1, noise=cell.demo_noise
+        )
+        for index, demo in demos:
             if demo is None:
                 failed.append(index)
             else:

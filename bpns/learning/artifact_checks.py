@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from bpns.learning.nets import check_layers
+
 MAX_INDEX_BYTES = 1 << 22
 MAX_INDEX_DEPTH = 8  # a valid index nests 5 deep (skills/entry/atoms/atom/args)
 MAX_NPZ_BYTES = 1 << 28
@@ -33,9 +35,9 @@ MAX_ARRAY_BYTES = 1 << 26
 MAX_LAYERS = 64
 
 _NET_KEY = r"(input_mean|input_std|output_mean|output_std|input_low|input_high|[wb]\d{1,2})"
-_DIMS_KEY = r"dims/(size|state_dims|subgoal_dims|num_objects)"
+_DIMS_KEY = r"dims/(size|state_dims|subgoal_dims|num_objects|objects)"
 POLICY_KEYS = re.compile(rf"{_DIMS_KEY}|net/{_NET_KEY}|use_subgoals|near_scale")
-SAMPLER_KEYS = re.compile(rf"{_DIMS_KEY}|(generator|classifier)/{_NET_KEY}|max_tries")
+SAMPLER_KEYS = re.compile(rf"{_DIMS_KEY}|(generator|classifier)/{_NET_KEY}|linear/[wb]0|max_tries")
 INTEGER_KEYS = re.compile(rf"{_DIMS_KEY}|max_tries|use_subgoals")
 
 
@@ -324,13 +326,7 @@ def check_network(
     length, positive input std, an ordered input box and finite numbers throughout."""
     ws, bs = params.weights, params.biases
     _require(0 < len(ws) <= MAX_LAYERS, f"{where}: {len(ws)} layers")
-    width = input_dim
-    for k, (w, b) in enumerate(zip(ws, bs, strict=True)):
-        _require(
-            w.ndim == 2 and w.shape[0] == width and w.shape[1] >= 1 and b.shape == (w.shape[1],),
-            f"{where}: layer {k} has shapes {w.shape}, {b.shape}; expected ({width}, n), (n,)",
-        )
-        width = w.shape[1]
+    width = check_layers(params.layers, input_dim, where)
     _require(raw_output_dim(width), f"{where}: {width} outputs do not fit the network's role")
     for name in ("input_mean", "input_std", "input_low", "input_high"):
         a = getattr(params, name)
@@ -374,3 +370,14 @@ def check_skill_arrays(policy: Any, sampler: Any, scope_size: int, name: str) ->
     _require(sampler.generator_params.output_mean.shape == (ng,), f"{name} generator: output stats")
     if sampler.classifier_params is not None:
         check_network(sampler.classifier_params, ns + ng, lambda n: n == 1, f"{name} classifier")
+    base = getattr(sampler, "base", None)
+    if base is not None:
+        _require(
+            base.weight.shape == (ns, ng) and base.bias.shape == (ng,),
+            f"{name} sampler: linear base of shape {base.weight.shape}, {base.bias.shape}; "
+            f"expected ({ns}, {ng}), ({ng},)",
+        )
+        _require(
+            bool(np.isfinite(base.weight).all() and np.isfinite(base.bias).all()),
+            f"{name} sampler: linear base is not finite",
+        )

@@ -339,6 +339,16 @@ def _read_skill(
         n = dims.num_objects
         if n is not None and not 1 <= n <= len(op.parameters):
             raise ArtifactError(f"{op.name}: scope of {n} objects, the operator has fewer")
+        chosen = dims.objects
+        if chosen is not None and (
+            not chosen
+            or len(set(chosen)) != len(chosen)
+            or not all(0 <= i < len(op.parameters) for i in chosen)
+        ):
+            raise ArtifactError(
+                f"{op.name}: scope objects {list(chosen)} are not distinct parameters of "
+                f"an operator with {len(op.parameters)}"
+            )
     scope = policy.dims.scope(op.parameters)
     checks.check_skill_arrays(
         policy,
@@ -354,6 +364,8 @@ def _config_from_json(d: Mapping[str, Any]) -> LearningConfig:
     nets = {k: _mlp_config(d[k]) for k in ("policy", "generator", "classifier")}
     fields = {f.name for f in dataclasses.fields(LearningConfig)}
     rest = {k: v for k, v in d.items() if k in fields and k not in nets}
+    rest.setdefault("share_effect_data", False)  # skills saved before these existed
+    rest.setdefault("linear_sampler_base", False)
     return LearningConfig(**rest, **nets)
 
 

@@ -11,6 +11,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from bpns.environment import Environment
 
 
 @dataclass(frozen=True)
@@ -70,6 +74,14 @@ class LearningConfig:
     # resolution near the subgoal, where demonstrators switch (policies.py). None: off,
     # as in the paper; domains whose demonstrators switch declare it (learning_defaults).
     near_goal_scale: float | None = None
+    # Train each skill's policy and subgoal generator also on the segments of operators
+    # whose add effects include all of its own (sharing.py): variants of one motion that
+    # segmentation split by what they leave behind. False: each operator's own data, as
+    # in the paper.
+    share_effect_data: bool = True
+    # The subgoal generator's mean = a ridge-regression map of the start scope + the
+    # network's residual (samplers.LinearBase). False: the network alone, as in the paper.
+    linear_sampler_base: bool = True
     # A scope dimension counts as "changing" when |final - initial| exceeds this in some
     # segment, and as static when its range over all the skill's states is within it.
     change_tolerance: float = 0.0
@@ -114,11 +126,11 @@ class LearningConfig:
             raise ValueError(f"change_tolerance must be >= 0, got {self.change_tolerance}")
 
 
-def learning_config_for(env: object, **overrides: object) -> LearningConfig:
+def learning_config_for(env: Environment, **overrides: object) -> LearningConfig:
     """The environment's declared learning defaults with ``overrides`` (those not None)
-    on top: ``settle_steps`` from its ``contact_settle_steps``, then its optional
-    ``learning_defaults`` mapping of field names (e.g. ``{"near_goal_scale": 0.01}``)."""
-    fields: dict[str, object] = {"settle_steps": int(getattr(env, "contact_settle_steps", 1))}
-    fields.update(dict(getattr(env, "learning_defaults", {}) or {}))
+    on top: ``settle_steps`` from its ``contact_settle_steps``, then its
+    ``capabilities.learning_defaults`` (e.g. ``{"near_goal_scale": 0.01}``)."""
+    fields: dict[str, object] = {"settle_steps": int(env.contact_settle_steps)}
+    fields.update(env.capabilities.learning_defaults)
     fields.update({k: v for k, v in overrides.items() if v is not None})
     return LearningConfig(**fields)  # type: ignore[arg-type]

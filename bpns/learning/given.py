@@ -1,16 +1,17 @@
 """Given skills: policies and samplers an environment supplies (e.g. motion planners).
 
-Paper Q3 (Doors): where a motion planner exists, BPNS uses it instead of learning to move.
-An environment declares its given skills with ``given_skills()`` (optional). Each is a
-:class:`GivenSkill`: a name, a *signature* operator over the skill's own parameters, and
-a policy and sampler over those parameters. Operators are still learned from the
-demonstrations for every segment group. A learned operator *is produced by* a given skill
-when some injective, type-preserving mapping of the signature's parameters onto the
-operator's parameters sends the signature's add effects exactly onto the operator's add
-effects and its delete effects and preconditions into the operator's. The learned skill
-of such an operator keeps the given policy and sampler (called with the objects
-reordered by that mapping) and no network is trained for it. The demonstrator makes this
-hold by running the given skills' own policies for those segments.
+Paper Q3 (Doors): where a motion planner exists, BPNS uses it instead of learning to
+move. An environment declares its given skills in ``Capabilities(given_skills=...)``
+(optional). Each is a :class:`~bpns.structs.GivenSkill`: a name, a *signature* operator
+over the skill's own parameters, and a policy and sampler over those parameters.
+Operators are still learned from the demonstrations for every segment group. A learned
+operator *is produced by* a given skill when some injective, type-preserving mapping of
+the signature's parameters onto the operator's parameters sends the signature's add
+effects exactly onto the operator's add effects and its delete effects and preconditions
+into the operator's. The learned skill of such an operator keeps the given policy and
+sampler (called with the objects reordered by that mapping) and no network is trained
+for it. The demonstrator makes this hold by running the given skills' own policies for
+those segments.
 
 Saved skills record a given skill by name and mapping (``artifacts``); loading needs
 the environment's given skills again.
@@ -21,29 +22,21 @@ from __future__ import annotations
 import itertools
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from bpns.structs import (
+    GivenSkill,
     LiftedAtom,
     Object,
     State,
     STRIPSOperator,
-    SubgoalPolicy,
-    SubgoalSampler,
     Variable,
 )
 
-
-@dataclass(frozen=True)
-class GivenSkill:
-    """A skill supplied by the environment. ``signature`` names its parameters (in the
-    order its policy and sampler take objects) and the effects that identify it."""
-
-    name: str
-    signature: STRIPSOperator
-    policy: SubgoalPolicy
-    sampler: SubgoalSampler
+if TYPE_CHECKING:
+    from bpns.environment import Environment
 
 
 @dataclass(frozen=True)
@@ -102,7 +95,7 @@ def match_given(
     return None
 
 
-def given_skills_of(env: object) -> tuple[GivenSkill, ...]:
-    """The environment's given skills (``env.given_skills()``, optional), else none."""
-    make = getattr(env, "given_skills", None)
+def given_skills_of(env: Environment) -> tuple[GivenSkill, ...]:
+    """The environment's given skills (``capabilities.given_skills``), else none."""
+    make = env.capabilities.given_skills
     return () if make is None else tuple(make())

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -30,6 +29,20 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from bpns.learning.graphs import GraphBatch, GraphInput, GraphVocabulary, batch_graphs
+from bpns.learning.nets import (
+    Adam,
+    Layers,
+    check_layers,
+    count_layers,
+    layers_from_arrays,
+    layers_to_arrays,
+    numpy_layers,
+    numpy_mlp,
+    standardisation,
+    torch_layers,
+    torch_linears,
+    torch_mlp,
+)
 
 if TYPE_CHECKING:
     import torch
@@ -101,9 +114,6 @@ class GNNTrainingStats:
     final_loss: float
 
 
-Layers = tuple[tuple[np.ndarray, np.ndarray], ...]  # (weight (in, out), bias (out,))
-
-
 @dataclass(frozen=True, eq=False)
 class GNNParams:
     """Trained weights (float64 numpy) plus input/output standardisation."""
@@ -136,9 +146,7 @@ class GNNParams:
             "out_std": self.out_std,
         }
         for name, layers in self.mlps.items():
-            for k, (w, b) in enumerate(layers):
-                out[f"{name}/w{k}"] = w
-                out[f"{name}/b{k}"] = b
+            out.update(layers_to_arrays(layers, f"{name}/"))
         return out
 
     @classmethod
@@ -147,18 +155,11 @@ class GNNParams:
         (see :meth:`check`; callers turn these into their artifact error)."""
         mlps: dict[str, Layers] = {}
         for name in MLP_NAMES:
-            n = sum(1 for k in arrays if k.startswith(f"{name}/w"))
-            if n == 0:
+            if count_layers(arrays, f"{name}/") == 0:
                 if name == "dec_node":
                     continue
                 raise KeyError(f"missing network {name!r}")
-            mlps[name] = tuple(
-                (
-                    np.array(arrays[f"{name}/w{k}"], dtype=np.float64),
-                    np.array(arrays[f"{name}/b{k}"], dtype=np.float64),
-                )
-                for k in range(n)
-            )
+            mlps[name] = layers_from_arrays(arrays, f"{name}/")
         get = lambda key: np.array(arrays[key], dtype=np.float64)  # noqa: E731
         return cls(
             mlps=mlps,
@@ -189,16 +190,9 @@ class GNNParams:
             "dec_global": latent,
         }
         for name, layers in self.mlps.items():
-            fan_in = inputs[name]
-            for k, (w, b) in enumerate(layers):
-                if w.ndim != 2 or w.shape[0] != fan_in or b.shape != (w.shape[1],):
-                    raise ValueError(
-                        f"{name} layer {k}: weight {w.shape}, bias {b.shape}, expected "
-                        f"fan-in {fan_in}"
-                    )
-                fan_in = w.shape[1]
-            if not name.startswith("dec") and fan_in != latent:
-                raise ValueError(f"{name} outputs {fan_in} units, the latent has {latent}")
+            width = check_layers(layers, inputs[name], name)
+            if not name.startswith("dec") and width != latent:
+                raise ValueError(f"{name} outputs {width} units, the latent has {latent}")
         shape = (len(vocab.types), vocab.feature_width)
         if self.raw_mean.shape != shape or self.raw_std.shape != shape:
             raise ValueError(
@@ -214,16 +208,6 @@ class GNNParams:
 
 
 # ------------------------------------------------------------------------ numpy inference
-
-
-def _mlp(layers: Layers, x: np.ndarray) -> np.ndarray:
-    last = len(layers) - 1
-    for k, (w, b) in enumerate(layers):
-        x = x @ w
-        x += b
-        if k < last:
-            np.maximum(x, 0.0, out=x)
-    return x
 
 
 def _segment_sum(values: np.ndarray, index: np.ndarray, n: int) -> np.ndarray:
@@ -255,38 +239,29 @@ class NumpyGNN:
         m = self._m
         g = batch.num_graphs
         n = len(batch.nodes)
-        v0 = _mlp(m["enc_node"], standardise_nodes(self.params, self.vocab, batch))
-        e0 = _mlp(m["enc_edge"], batch.edges)
-        u0 = _mlp(m["enc_global"], batch.globals)
+        v0 = numpy_mlp(m["enc_node"], standardise_nodes(self.params, self.vocab, batch))
+        e0 = numpy_mlp(m["enc_edge"], batch.edges)
+        u0 = numpy_mlp(m["enc_global"], batch.globals)
         v, e, u = v0, e0, u0
         s, r, ng, eg = batch.senders, batch.receivers, batch.node_graph, batch.edge_graph
         for _ in range(self.params.message_steps):
             vc = np.concatenate((v0, v), axis=1)
             ec = np.concatenate((e0, e), axis=1)
             uc = np.concatenate((u0, u), axis=1)
-            e = _mlp(m["core_edge"], np.concatenate((ec, vc[s], vc[r], uc[eg]), axis=1))
-            v = _mlp(m["core_node"], np.concatenate((vc, _segment_sum(e, r, n), uc[ng]), axis=1))
-            u = _mlp(
+            e = numpy_mlp(m["core_edge"], np.concatenate((ec, vc[s], vc[r], uc[eg]), axis=1))
+            v = numpy_mlp(
+                m["core_node"], np.concatenate((vc, _segment_sum(e, r, n), uc[ng]), axis=1)
+            )
+            u = numpy_mlp(
                 m["core_global"],
                 np.concatenate((uc, _segment_sum(v, ng, g), _segment_sum(e, eg, g)), axis=1),
             )
-        node_out = _mlp(m["dec_node"], v) if "dec_node" in m else np.zeros((n, 0))
-        glob = _mlp(m["dec_global"], u) * self.params.out_std + self.params.out_mean
+        node_out = numpy_mlp(m["dec_node"], v) if "dec_node" in m else np.zeros((n, 0))
+        glob = numpy_mlp(m["dec_global"], u) * self.params.out_std + self.params.out_mean
         return node_out, glob
 
 
 # ----------------------------------------------------------------------------- training
-
-
-def _torch_mlp(sizes: Sequence[int]) -> torch.nn.Sequential:
-    import torch
-
-    layers: list[torch.nn.Module] = []
-    for k, (a, b) in enumerate(zip(sizes[:-1], sizes[1:], strict=True)):
-        layers.append(torch.nn.Linear(a, b))
-        if k < len(sizes) - 2:
-            layers.append(torch.nn.ReLU())
-    return torch.nn.Sequential(*layers)
 
 
 def _build_torch(
@@ -307,9 +282,7 @@ def _build_torch(
     }
     if node_out > 0:
         sizes["dec_node"] = (lat, *hid, node_out)
-    with warnings.catch_warnings():  # an encoder of zero inputs (no nullary predicates)
-        warnings.filterwarnings("ignore", message="Initializing zero-element tensors")
-        return torch.nn.ModuleDict({k: _torch_mlp(v) for k, v in sizes.items()})
+    return torch.nn.ModuleDict({k: torch_linears(v) for k, v in sizes.items()})
 
 
 @dataclass(frozen=True, eq=False)
@@ -331,18 +304,19 @@ def _torch_forward(
 
     lat = net["enc_node"][-1].out_features
     n = b.nodes.shape[0]
-    v0, e0, u0 = net["enc_node"](b.nodes), net["enc_edge"](b.edges), net["enc_global"](b.globals)
+    f = lambda name, x: torch_mlp(net[name], x)  # noqa: E731
+    v0, e0, u0 = f("enc_node", b.nodes), f("enc_edge", b.edges), f("enc_global", b.globals)
     v, e, u = v0, e0, u0
     for _ in range(steps):
         vc, ec, uc = torch.cat((v0, v), 1), torch.cat((e0, e), 1), torch.cat((u0, u), 1)
-        e = net["core_edge"](torch.cat((ec, vc[b.senders], vc[b.receivers], uc[b.edge_graph]), 1))
+        e = f("core_edge", torch.cat((ec, vc[b.senders], vc[b.receivers], uc[b.edge_graph]), 1))
         incoming = e.new_zeros((n, lat)).index_add_(0, b.receivers, e)
-        v = net["core_node"](torch.cat((vc, incoming, uc[b.node_graph]), 1))
+        v = f("core_node", torch.cat((vc, incoming, uc[b.node_graph]), 1))
         node_sum = v.new_zeros((b.num_graphs, lat)).index_add_(0, b.node_graph, v)
         edge_sum = e.new_zeros((b.num_graphs, lat)).index_add_(0, b.edge_graph, e)
-        u = net["core_global"](torch.cat((uc, node_sum, edge_sum), 1))
-    node_out = net["dec_node"](v) if "dec_node" in net else None
-    return node_out, net["dec_global"](u)
+        u = f("core_global", torch.cat((uc, node_sum, edge_sum), 1))
+    node_out = f("dec_node", v) if "dec_node" in net else None
+    return node_out, f("dec_global", u)
 
 
 def _params_from_torch(
@@ -353,20 +327,7 @@ def _params_from_torch(
     out_mean: np.ndarray,
     out_std: np.ndarray,
 ) -> GNNParams:
-    import torch
-
-    mlps = {}
-    for name in MLP_NAMES:
-        if name not in net:
-            continue
-        mlps[name] = tuple(
-            (
-                layer.weight.detach().numpy().T.astype(np.float64).copy(),
-                layer.bias.detach().numpy().astype(np.float64).copy(),
-            )
-            for layer in net[name]
-            if isinstance(layer, torch.nn.Linear)
-        )
+    mlps = {name: numpy_layers(net[name]) for name in MLP_NAMES if name in net}
     return GNNParams(mlps, steps, raw_mean, raw_std, out_mean, out_std)
 
 
@@ -383,8 +344,7 @@ def raw_standardisation(
     for k, t in enumerate(vocab.types):
         sel = rows[types == k, : t.dim]
         if len(sel):
-            mean[k, : t.dim] = sel.mean(axis=0)
-            std[k, : t.dim] = np.maximum(sel.std(axis=0), std_floor)
+            mean[k, : t.dim], std[k, : t.dim] = standardisation(sel, std_floor)
     return mean, std
 
 
@@ -432,8 +392,7 @@ def train_gnn(vocab: GraphVocabulary, data: GNNTrainingData, config: GNNConfig) 
     node_t = None if data.node_targets is None else [data.node_targets[i] for i in chosen]
     raw_mean, raw_std = raw_standardisation(vocab, graphs, config.std_floor)
     if data.standardise_outputs:
-        out_mean = gt.mean(axis=0)
-        out_std = np.maximum(gt.std(axis=0), config.std_floor)
+        out_mean, out_std = standardisation(gt, config.std_floor)
     else:
         out_mean, out_std = np.zeros(gt.shape[1]), np.ones(gt.shape[1])
     whole = batch_graphs(graphs)
@@ -460,7 +419,8 @@ def train_gnn(vocab: GraphVocabulary, data: GNNTrainingData, config: GNNConfig) 
         all_glob = T(whole.globals)
         all_gt = T((gt - out_mean) / out_std)
         all_nt = T(np.concatenate(node_t)) if node_t is not None else None
-        adam = _Adam(list(net.parameters()), config.learning_rate)
+        params = list(net.parameters())
+        adam = Adam(params, config.learning_rate)
         n = len(graphs)
         bs = min(config.batch_size, n)
         per_epoch = math.ceil(n / bs)
@@ -491,9 +451,10 @@ def train_gnn(vocab: GraphVocabulary, data: GNNTrainingData, config: GNNConfig) 
                 loss = torch.mean((glob_pred - all_gt[T(ids, torch.long)]) ** 2)
                 if node_pred is not None and all_nt is not None:
                     loss = loss + torch.mean((node_pred - all_nt[T(node_idx, torch.long)]) ** 2)
-                adam.zero_grad()
+                for p in params:
+                    p.grad = None
                 loss.backward()
-                adam.step()
+                adam.step([p.grad for p in params])
                 loss_value = float(loss.detach())
                 step += 1
     finally:
@@ -508,37 +469,6 @@ def train_gnn(vocab: GraphVocabulary, data: GNNTrainingData, config: GNNConfig) 
         final_loss=loss_value,
     )
     return TrainedGNN(params, stats)
-
-
-class _Adam:
-    """torch.optim.Adam's update (no weight decay, no amsgrad). torch.optim imports
-    torch._dynamo on first use, seconds of start-up for a few milliseconds of work."""
-
-    def __init__(self, params: list, lr: float, betas=(0.9, 0.999), eps: float = 1e-8):
-        import torch
-
-        self.params, self.lr, self.betas, self.eps = params, lr, betas, eps
-        self.m = [torch.zeros_like(p) for p in params]
-        self.v = [torch.zeros_like(p) for p in params]
-        self.t = 0
-
-    def zero_grad(self) -> None:
-        for p in self.params:
-            p.grad = None
-
-    def step(self) -> None:
-        import torch
-
-        b1, b2 = self.betas
-        self.t += 1
-        c1, c2 = 1.0 - b1**self.t, math.sqrt(1.0 - b2**self.t)
-        with torch.no_grad():
-            for p, m, v in zip(self.params, self.m, self.v, strict=True):
-                if p.grad is None:
-                    continue
-                m.lerp_(p.grad, 1.0 - b1)
-                v.mul_(b2).addcmul_(p.grad, p.grad, value=1.0 - b2)
-                p.addcdiv_(m, (v.sqrt() / c2).add_(self.eps), value=-self.lr / c1)
 
 
 def _gather(
@@ -574,21 +504,11 @@ def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
     return offsets + np.arange(total)
 
 
-def torch_module(params: GNNParams, vocab: GraphVocabulary) -> torch.nn.ModuleDict:
+def torch_module(params: GNNParams) -> torch.nn.ModuleDict:
     """A float64 torch module holding ``params`` (for :func:`torch_forward`)."""
     import torch
 
-    hidden = tuple(w.shape[1] for w, _ in params.mlps["enc_node"][:-1])
-    config = GNNConfig(hidden=hidden, latent=params.latent, message_steps=params.message_steps)
-    with torch.random.fork_rng(devices=[]):  # initial values are overwritten below
-        net = _build_torch(vocab, config, params.node_out_dim, params.global_out_dim).double()
-    with torch.no_grad():
-        for name, layers in params.mlps.items():
-            linear = [m for m in net[name] if isinstance(m, torch.nn.Linear)]
-            for lin, (w, b) in zip(linear, layers, strict=True):
-                lin.weight.copy_(torch.from_numpy(w.T))
-                lin.bias.copy_(torch.from_numpy(b))
-    return net
+    return torch.nn.ModuleDict({name: torch_layers(layers) for name, layers in params.mlps.items()})
 
 
 def torch_forward(
@@ -619,4 +539,4 @@ def torch_reference(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The same forward pass computed by torch in float64 from ``params`` (the check of
     the numpy inference path); global outputs de-standardised."""
-    return torch_forward(torch_module(params, vocab), params, vocab, batch)
+    return torch_forward(torch_module(params), params, vocab, batch)

@@ -54,7 +54,7 @@ def bc_examples(
         demo = demos[d]
         state = demo.states[t]
         out.append(
-            BCExample(state, abstract(state, predicates), demo.task.goal, demo.actions[t].copy())
+            BCExample(state, abstract(state, predicates), demo.task.goal, demo.labels[t].copy())
         )
     return out, len(steps)
 

@@ -13,7 +13,6 @@ Three heads share one trunk type:
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -21,6 +20,18 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from bpns.learning.config import MLPConfig
+from bpns.learning.nets import (
+    Adam,
+    Layers,
+    count_layers,
+    layers_from_arrays,
+    layers_to_arrays,
+    numpy_mlp,
+    standardisation,
+    torch_layers,
+    torch_linears,
+    torch_mlp,
+)
 
 if TYPE_CHECKING:
     import torch
@@ -55,6 +66,10 @@ class MLPParams:
     def raw_output_dim(self) -> int:
         return int(self.weights[-1].shape[1])
 
+    @property
+    def layers(self) -> Layers:
+        return tuple(zip(self.weights, self.biases, strict=True))
+
     def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
         out = {
             f"{prefix}input_mean": self.input_mean,
@@ -65,23 +80,19 @@ class MLPParams:
         if self.input_low is not None and self.input_high is not None:
             out[f"{prefix}input_low"] = self.input_low
             out[f"{prefix}input_high"] = self.input_high
-        for k, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
-            out[f"{prefix}w{k}"] = w
-            out[f"{prefix}b{k}"] = b
+        out.update(layers_to_arrays(self.layers, prefix))
         return out
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str = "") -> MLPParams:
-        n = sum(
-            1 for key in arrays if key.startswith(f"{prefix}w") and key[len(prefix) + 1 :].isdigit()
-        )
-        if n == 0:
+        if count_layers(arrays, prefix) == 0:
             raise KeyError(f"no network weights with prefix {prefix!r}")
         get = lambda key: np.array(arrays[f"{prefix}{key}"], dtype=np.float64)  # noqa: E731
         boxed = f"{prefix}input_low" in arrays and f"{prefix}input_high" in arrays
+        layers = layers_from_arrays(arrays, prefix)
         return cls(
-            weights=tuple(get(f"w{k}") for k in range(n)),
-            biases=tuple(get(f"b{k}") for k in range(n)),
+            weights=tuple(w for w, _ in layers),
+            biases=tuple(b for _, b in layers),
             input_mean=get("input_mean"),
             input_std=get("input_std"),
             output_mean=get("output_mean"),
@@ -97,18 +108,6 @@ class MLPParams:
 
 
 # ---------------------------------------------------------------------------- training
-
-
-def standardisation(data: np.ndarray, std_floor: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per-column mean and std, the std raised to at least ``std_floor``.
-
-    Without the floor a nearly constant column (a block's x on a line, jittering by a
-    millimetre) is divided by its tiny std, and at planning time a centimetre of drift
-    becomes a 10-sigma input that the network extrapolates wildly from.
-    """
-    mean = data.mean(axis=0)
-    std = np.maximum(data.std(axis=0), std_floor)
-    return mean.astype(np.float64), std.astype(np.float64)
 
 
 def input_box(
@@ -127,23 +126,6 @@ def input_box(
     low, high = data.min(axis=0), data.max(axis=0)
     span = (high - low) * margin
     return (low - span).astype(np.float64), (high + span).astype(np.float64)
-
-
-def _layers(in_dim: int, hidden: tuple[int, ...], out_dim: int) -> torch.nn.ModuleList:
-    import torch
-
-    sizes = (in_dim, *hidden, out_dim)
-    return torch.nn.ModuleList(
-        torch.nn.Linear(a, b) for a, b in zip(sizes[:-1], sizes[1:], strict=True)
-    )
-
-
-def _torch_forward(layers: torch.nn.ModuleList, x: torch.Tensor) -> torch.Tensor:
-    import torch
-
-    for layer in layers[:-1]:
-        x = torch.relu(layer(x))
-    return layers[-1](x)
 
 
 def torch_gaussian_head(raw: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -228,7 +210,7 @@ class _FlatMLP:
         # torch.nn.Linear's default initialisation, without touching the global RNG.
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(seed)
-            init = _layers(sizes[0], sizes[1:-1], sizes[-1])
+            init = torch_linears(sizes)
         shapes = [s for a, b in zip(sizes[:-1], sizes[1:], strict=True) for s in ((a, b), (b,))]
         total = sum(int(np.prod(s)) for s in shapes)
         dtype = torch.float32 if dtype is None else dtype
@@ -275,26 +257,6 @@ class _FlatMLP:
         return weights, biases
 
 
-class _Adam:
-    """torch.optim.Adam's update (no weight decay, no amsgrad) on one flat tensor."""
-
-    def __init__(self, param: torch.Tensor, lr: float, betas=(0.9, 0.999), eps: float = 1e-8):
-        import torch
-
-        self.param, self.lr, self.betas, self.eps = param, lr, betas, eps
-        self.m = torch.zeros_like(param)
-        self.v = torch.zeros_like(param)
-        self.t = 0
-
-    def step(self, grad: torch.Tensor) -> None:
-        b1, b2 = self.betas
-        self.t += 1
-        self.m.lerp_(grad, 1.0 - b1)
-        self.v.mul_(b2).addcmul_(grad, grad, value=1.0 - b2)
-        denom = (self.v.sqrt() / math.sqrt(1.0 - b2**self.t)).add_(self.eps)
-        self.param.addcdiv_(self.m, denom, value=-self.lr / (1.0 - b1**self.t))
-
-
 def _fit(
     inputs: np.ndarray,
     targets: np.ndarray,
@@ -317,7 +279,7 @@ def _fit(
     x = torch.as_tensor(inputs, dtype=torch.float32)
     t = torch.as_tensor(targets, dtype=torch.float32)
     net = _FlatMLP((x.shape[1], *config.hidden_sizes, out_dim), seed)
-    adam = _Adam(net.flat, config.learning_rate)
+    adam = Adam([net.flat], config.learning_rate)
     gen = torch.Generator().manual_seed(seed)
     n = len(x)
     bs = min(config.batch_size, n)
@@ -334,7 +296,7 @@ def _fit(
                     break
                 acts = net.forward(xs[start : start + bs])
                 net.backward(acts, loss.grad(acts[-1], ts[start : start + bs]))
-                adam.step(net.grad)
+                adam.step([net.grad])
                 step += 1
     return net.numpy_layers()
 
@@ -397,20 +359,15 @@ def torch_reference(params: MLPParams, inputs: np.ndarray) -> np.ndarray:
     float64 from ``params``: the independent check of the numpy inference path."""
     import torch
 
-    with torch.random.fork_rng(devices=[]):  # initial values are overwritten below
-        hidden = tuple(w.shape[1] for w in params.weights[:-1])
-        layers = _layers(params.input_dim, hidden, params.raw_output_dim).double()
+    layers = torch_layers(params.layers)
     with torch.no_grad():
-        for layer, w, b in zip(layers, params.weights, params.biases, strict=True):
-            layer.weight.copy_(torch.from_numpy(w.T))
-            layer.bias.copy_(torch.from_numpy(b))
         x = torch.from_numpy(_as_2d(inputs))
         if params.input_low is not None and params.input_high is not None:
             x = torch.clamp(
                 x, torch.from_numpy(params.input_low), torch.from_numpy(params.input_high)
             )
         x = (x - torch.from_numpy(params.input_mean)) / torch.from_numpy(params.input_std)
-        return _torch_forward(layers, x).numpy()
+        return torch_mlp(layers, x).numpy()
 
 
 # --------------------------------------------------------------------------- inference
@@ -429,11 +386,7 @@ class _NumpyNet:
         if fold_output:
             bs[-1] = bs[-1] * params.output_std + params.output_mean
             ws[-1] = ws[-1] * params.output_std[None, :]
-        self._hidden = tuple(
-            (np.ascontiguousarray(w), b) for w, b in zip(ws[:-1], bs[:-1], strict=True)
-        )
-        self._w_out = np.ascontiguousarray(ws[-1])
-        self._b_out = bs[-1]
+        self._layers = tuple((np.ascontiguousarray(w), b) for w, b in zip(ws, bs, strict=True))
         self._box = (
             None
             if params.input_low is None or params.input_high is None
@@ -444,13 +397,7 @@ class _NumpyNet:
     def forward(self, x: np.ndarray) -> np.ndarray:
         """One input vector or a batch (rows); returns a fresh array."""
         h = x if self._box is None else np.minimum(np.maximum(x, self._box[0]), self._box[1])
-        for w, b in self._hidden:
-            h = h @ w
-            h += b
-            np.maximum(h, 0.0, out=h)
-        out = h @ self._w_out
-        out += self._b_out
-        return out
+        return numpy_mlp(self._layers, h)
 
 
 class Regressor:

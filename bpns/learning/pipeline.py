@@ -21,7 +21,7 @@ from bpns.learning.demo_checks import check_demonstrations
 from bpns.learning.given import BoundPolicy, BoundSampler, GivenSkill, match_given
 from bpns.learning.operators import SkillDataset, learn_operators
 from bpns.learning.partition import SegmentGroup, partition_segments
-from bpns.learning.policies import ScopeDims, learn_policy, scope_trajectories
+from bpns.learning.policies import ScopeDims, learn_policy, scope_trajectories, train_policy
 from bpns.learning.samplers import (
     CurrentStateSampler,
     LearnedSampler,
@@ -29,6 +29,7 @@ from bpns.learning.samplers import (
     train_sampler,
 )
 from bpns.learning.segmentation import segment_demonstrations
+from bpns.learning.sharing import shared_data
 from bpns.structs import Demonstration, Predicate, Segment, Skill, STRIPSOperator, Type
 
 STAGES = ("segment", "partition", "operators", "policies", "samplers")
@@ -170,22 +171,42 @@ def learn_skills(
             )
             skill_stats.append(SkillStats(dataset.operator.name, len(dataset), 0, 0))
             continue
-        say(f"training {dataset.operator.name} ({k + 1}/{len(datasets)}, {len(dataset)} segments)")
+        shared = shared_data(datasets, k) if config.share_effect_data else None
+        own = len(dataset)
+        lent = "" if shared is None else f" + {len(shared.segments) - own} lent"
+        say(f"training {dataset.operator.name} ({k + 1}/{len(datasets)}, {own} segments{lent})")
         with timer.stage("policies"):
-            scopes = scope_trajectories(dataset)
-            dims = ScopeDims.from_scopes(scopes, config.change_tolerance, dataset.scope_size)
-            policy = learn_policy(
-                dataset, config, derive_seed(config.seed, k, _POLICY), scopes, dims
-            )
+            if shared is None:
+                scopes = scope_trajectories(dataset)
+                dims = ScopeDims.from_scopes(scopes, config.change_tolerance, dataset.scope_size)
+                policy = learn_policy(
+                    dataset, config, derive_seed(config.seed, k, _POLICY), scopes, dims
+                )
+            else:
+                scopes = [
+                    np.stack([s.vec(objs) for s in seg.states])
+                    for seg, objs in zip(shared.segments, shared.objects, strict=True)
+                ]
+                dims = ScopeDims.from_scopes(scopes, config.change_tolerance, objects=shared.scope)
+                policy = train_policy(
+                    scopes,
+                    [seg.actions for seg in shared.segments],
+                    dims,
+                    config.policy,
+                    derive_seed(config.seed, k, _POLICY),
+                    config.use_subgoals,
+                    config.near_goal_scale,
+                )
         with timer.stage("samplers"):
             sampler: LearnedSampler | CurrentStateSampler
             if config.use_subgoals:
                 seed = derive_seed(config.seed, k, _SAMPLER)
+                lenders = () if shared is None else shared.segments
                 gen_x, gen_y, cls_data = sampler_training_data(
                     dataset,
                     scopes,
                     dims,
-                    _other_segments(groups, dataset),
+                    _other_segments(groups, dataset, exclude=lenders),
                     config.max_negative_bindings_per_segment,
                     seed,
                 )
@@ -198,6 +219,7 @@ def learn_skills(
                     config.classifier,
                     seed,
                     config.max_rejection_tries,
+                    config.linear_sampler_base,
                 )
                 negatives = int((cls_data[:, -1] == 0).sum())
             else:
@@ -220,9 +242,12 @@ def learn_skills(
     return LearnedSkills(tuple(skills), frozenset(predicates), config, stats)
 
 
-def _other_segments(groups: Sequence[SegmentGroup], dataset: SkillDataset) -> list[Segment]:
-    """Every segment, dropped groups included, except ``dataset``'s own."""
-    own = {id(s) for s in dataset.segments}
+def _other_segments(
+    groups: Sequence[SegmentGroup], dataset: SkillDataset, exclude: Sequence[Segment] = ()
+) -> list[Segment]:
+    """Every segment, dropped groups included, except ``dataset``'s own and ``exclude``
+    (segments lent to it as positives must not also be its negatives)."""
+    own = {id(s) for s in dataset.segments} | {id(s) for s in exclude}
     return [s for g in groups for s in g.segments if id(s) not in own]
 
 

@@ -35,20 +35,36 @@ class ScopeDims:
     carry no information). ``subgoal_dims``: dims where a segment's final scope differs
     from its initial scope in at least one segment (the only ones a subgoal sets).
     ``num_objects``: how many leading operator objects form the scope (None: all); an
-    operator's anchored parameters come last and are symbolic only.
+    operator's anchored parameters come last and are symbolic only. ``objects``, when
+    given, overrides it: the operator parameters (by index, in this order) that form the
+    scope, e.g. only those of the add effects when a skill learns from the segments of
+    operators that achieve the same effects from elsewhere (:mod:`bpns.learning.sharing`).
     """
 
     size: int
     state_dims: np.ndarray
     subgoal_dims: np.ndarray
     num_objects: int | None = None
+    objects: tuple[int, ...] | None = None
 
     def scope(self, objects: Sequence[Object]) -> Sequence[Object]:
+        if self.objects is not None:
+            return tuple(objects[i] for i in self.objects)
         return objects if self.num_objects is None else objects[: self.num_objects]
+
+    def scope_indices(self, num_parameters: int) -> tuple[int, ...]:
+        """The parameter indices of the scope for an operator of ``num_parameters``."""
+        if self.objects is not None:
+            return self.objects
+        return tuple(range(num_parameters if self.num_objects is None else self.num_objects))
 
     @classmethod
     def from_scopes(
-        cls, scopes: Sequence[np.ndarray], tolerance: float = 0.0, num_objects: int | None = None
+        cls,
+        scopes: Sequence[np.ndarray],
+        tolerance: float = 0.0,
+        num_objects: int | None = None,
+        objects: tuple[int, ...] | None = None,
     ) -> ScopeDims:
         """``scopes[i]`` is the (steps + 1, size) scope trajectory of segment i."""
         if not scopes:
@@ -61,24 +77,30 @@ class ScopeDims:
             state_dims=np.flatnonzero(spread > tolerance),
             subgoal_dims=np.flatnonzero(change > tolerance),
             num_objects=num_objects,
+            objects=objects,
         )
 
     def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
-        return {
+        out = {
             f"{prefix}size": np.array(self.size),
             f"{prefix}state_dims": self.state_dims,
             f"{prefix}subgoal_dims": self.subgoal_dims,
             f"{prefix}num_objects": np.array(-1 if self.num_objects is None else self.num_objects),
         }
+        if self.objects is not None:
+            out[f"{prefix}objects"] = np.array(self.objects, dtype=np.int64)
+        return out
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str = "") -> ScopeDims:
         num = int(arrays.get(f"{prefix}num_objects", -1))  # absent in older skills
+        chosen = arrays.get(f"{prefix}objects")  # absent unless the scope was chosen
         return cls(
             size=int(arrays[f"{prefix}size"]),
             state_dims=np.array(arrays[f"{prefix}state_dims"], dtype=np.int64),
             subgoal_dims=np.array(arrays[f"{prefix}subgoal_dims"], dtype=np.int64),
             num_objects=None if num < 0 else num,
+            objects=None if chosen is None else tuple(int(i) for i in chosen),
         )
 
 

@@ -48,7 +48,8 @@ def segment_demonstration(
 ) -> list[Segment]:
     """Split ``demo`` into segments ending at the first state after each contact change.
 
-    Segment k spans states[start..end] (inclusive) and actions[start:end]. The tail after
+    Segment k spans states[start..end] (inclusive) and the demo's labels[start:end] (the
+    demonstrator's commands; the executed actions unless noise was injected). The tail after
     the last switch point is kept only if it has effects; effect-free segments are dropped.
     """
     unknown = set(contact_predicates) - set(predicates)
@@ -57,6 +58,7 @@ def segment_demonstration(
             f"contact predicates {sorted(p.name for p in unknown)} are not among the predicates"
         )
     states = demo.states
+    labels = demo.labels  # the demonstrator's commands: what a skill's policy imitates
     contact = [abstract(s, contact_predicates) for s in states]
     boundaries = [0, *switch_points(contact, settle_steps)]
     if boundaries[-1] != len(states) - 1:
@@ -69,7 +71,7 @@ def segment_demonstration(
         init, final = full[start], full[end]
         if init == final:
             continue
-        segments.append(Segment(states[start : end + 1], demo.actions[start:end], init, final))
+        segments.append(Segment(states[start : end + 1], labels[start:end], init, final))
     return segments
 
 

@@ -8,6 +8,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from bpns.environment import Environment
 
 HEURISTICS = ("lmcut", "hff", "hadd", "hmax")
 SEARCHES = ("astar", "gbfs", "ucs")
@@ -85,10 +89,10 @@ class PlanningConfig:
             raise ValueError(f"stuck_atol must be >= 0, got {self.stuck_atol}")
 
 
-def planning_config_for(env: object, **overrides: object) -> PlanningConfig:
-    """The environment's declared planning defaults (an optional ``planning_defaults``
-    mapping of field names, e.g. the paper's N_abstract=1000 for Stick Button) with
-    ``overrides`` (those not None) on top."""
-    fields = dict(getattr(env, "planning_defaults", {}) or {})
+def planning_config_for(env: Environment, **overrides: object) -> PlanningConfig:
+    """The environment's declared planning defaults (``capabilities.planning_defaults``,
+    e.g. the paper's N_abstract=1000 for Stick Button) with ``overrides`` (those not
+    None) on top: the one source of a domain's planning settings."""
+    fields = dict(env.capabilities.planning_defaults)
     fields.update({k: v for k, v in overrides.items() if v is not None})
     return PlanningConfig(**fields)

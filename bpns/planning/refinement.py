@@ -31,7 +31,7 @@ from bpns.execution import (
 )
 from bpns.failures import NOT_EXECUTED, FailureReason
 from bpns.planning.config import PlanningConfig
-from bpns.planning.nogoods import NogoodMemo, PrefixCache
+from bpns.planning.nogoods import NogoodMemo, PrefixCache, StepKey
 from bpns.planning.search import AbstractPlan
 from bpns.rollouts import REACHED, Rollout, further, rollout_of
 from bpns.structs import GroundOperator, Skill, State, Task
@@ -112,71 +112,145 @@ class _Segment:
     states: list[State]  # states after each action
 
 
+def _flat(state: State) -> np.ndarray:
+    return state_features(state)[1]
+
+
+@dataclass
+class _Step:
+    """Step i of the skeleton and where the backtracking search stands at it."""
+
+    skill: Skill
+    op: GroundOperator
+    test: CompletionTest
+    key: StepKey  # the step as the nogood memo and the prefix cache know it
+    start: State  # the state the step starts from (the previous step's end)
+    used: int = 0  # actions taken before the step
+    segment: _Segment | None = None  # the current successful sample
+    tries: int = 0  # samples since the current arrival at the step
+    successes: int = 0  # successful ones among them
+    horizon_hit: bool = False  # a failure that depends on the prefix's length
+    # successful subgoals since the current arrival (their continuations failed whenever
+    # refinement is back here); None without a nogood memo
+    refuted: list[np.ndarray] | None = None
+
+    def succeeded(self, segment: _Segment) -> None:
+        self.successes += 1
+        if self.refuted is not None:
+            self.refuted.append(segment.subgoal)
+        self.segment = segment
+
+    def leave(self) -> None:
+        """Backtracking leaves the step: the next arrival starts afresh."""
+        self.tries, self.successes, self.horizon_hit = 0, 0, False
+        if self.refuted is not None:
+            self.refuted = []
+
+
 def _sample(
     executor: SkillExecutor,
     counters: _Counters,
     nogood_atol: float | None,
-    skill: Skill,
-    op: GroundOperator,
-    test: CompletionTest,
-    state: State,
-    used_steps: int,
+    step: _Step,
     rng: np.random.Generator,
-    refuted: list[np.ndarray] | None = None,
 ) -> _Segment | FailureReason:
     """One sample of one step: a segment on success, else the failure reason.
 
-    A subgoal within ``nogood_atol`` of one in ``refuted`` (subgoals that succeeded from
-    this very state but whose continuation was refuted) is not simulated again: policy
-    and physics are deterministic, so it would reach the same dead end. Subgoals that
-    failed themselves are not remembered: a learned policy's success can hinge on
+    A subgoal within ``nogood_atol`` of one in ``step.refuted`` (subgoals that succeeded
+    from this very state but whose continuation was refuted) is not simulated again:
+    policy and physics are deterministic, so it would reach the same dead end. Subgoals
+    that failed themselves are not remembered: a learned policy's success can hinge on
     millimetres, so a neighbour deserves its own try."""
     counters.samples += 1
-    objects = op.objects
+    objects = step.op.objects
     try:
-        subgoal = np.asarray(skill.sampler(state, objects, rng), dtype=np.float64)
+        subgoal = np.asarray(step.skill.sampler(step.start, objects, rng), dtype=np.float64)
     except Exception:
         return FailureReason.SAMPLER_ERROR
     if not np.isfinite(subgoal).all():
         return FailureReason.SAMPLER_NONFINITE
-    if refuted is not None:
-        for old in refuted:
+    if step.refuted is not None:
+        for old in step.refuted:
             if (
                 old.shape == subgoal.shape
                 and np.max(np.abs(old - subgoal), initial=0) <= nogood_atol
             ):
                 return FailureReason.NOGOOD
-    out = executor.execute(skill, objects, subgoal, state, test, used_steps)
+    out = executor.execute(step.skill, objects, subgoal, step.start, step.test, step.used)
     if isinstance(out, Executed):
         return _Segment(subgoal, out.actions, out.states)
     return out
 
 
+def _steps(
+    plan: AbstractPlan, skills: Sequence[Skill], task: Task, memo: NogoodMemo | None
+) -> list[_Step]:
+    if len(skills) != len(plan.operators):
+        raise ValueError(
+            f"need one skill per plan step: {len(skills)} skills, {len(plan.operators)} steps"
+        )
+    steps = []
+    for skill, op, nxt in zip(skills, plan.operators, plan.atoms[1:], strict=True):
+        if skill.operator != op.operator:
+            raise ValueError(f"skill {skill.name} does not match plan step {op}")
+        test = completion_test(op, nxt)
+        key = NogoodMemo.step_key(op, test.must_hold, test.must_not_hold)
+        steps.append(
+            _Step(skill, op, test, key, task.init, refuted=[] if memo is not None else None)
+        )
+    return steps
+
+
+def _advance(steps: list[_Step], i: int, segment: _Segment) -> int:
+    """Step i succeeded with ``segment``: the next step starts where it ended."""
+    step = steps[i]
+    step.succeeded(segment)
+    if i + 1 < len(steps):
+        steps[i + 1].start = segment.states[-1]
+        steps[i + 1].used = step.used + len(segment.actions)
+    return i + 1
+
+
+def _exhausted(
+    steps: list[_Step], i: int, n_samples: int, memo: NogoodMemo | None, counters: _Counters
+) -> bool:
+    """Has step i no sample left? Records a step (or, when it had successes, the suffix
+    from it) refuted from its start, or refutes a fresh arrival the memo already knows."""
+    step = steps[i]
+    if step.tries >= n_samples:
+        if memo is not None and not step.horizon_hit:
+            suffix = tuple(s.key for s in steps[i:])
+            memo.add(step.key if step.successes == 0 else suffix, _flat(step.start))
+        return True
+    if step.tries == 0 and memo is not None:  # a fresh arrival at step i
+        x = _flat(step.start)
+        if memo.refuted(step.key, x) or memo.refuted(tuple(s.key for s in steps[i:]), x):
+            counters.failed(i, FailureReason.NOGOOD)
+            return True
+    return False
+
+
+def _backtrack(steps: list[_Step], i: int) -> None:
+    """Leave step i for step i - 1 (a suffix refuted only for lack of time steps is not
+    recorded by the step before either)."""
+    if i > 0:
+        steps[i - 1].horizon_hit |= steps[i].horizon_hit
+    steps[i].leave()
+
+
 def _attempt(
-    plan: AbstractPlan,
-    segments: Sequence[_Segment | None],
-    i: int,
-    executor: SkillExecutor,
-    reason: FailureReason,
+    steps: Sequence[_Step], i: int, executor: SkillExecutor, reason: FailureReason
 ) -> Rollout:
     """Steps 0..i-1 as refined, then step i's failed sample (its actions, if it ran)."""
-    done = [
-        (op, seg.subgoal, seg.actions, REACHED)
-        for op, seg in zip(plan.operators[:i], segments[:i], strict=True)
-        if seg is not None
-    ]
+    done = [(s.op, s.segment.subgoal, s.segment.actions, REACHED) for s in steps[:i] if s.segment]
     ran = reason not in NOT_EXECUTED
     failed = (
-        plan.operators[i],
+        steps[i].op,
         executor.last_subgoal if ran else None,
         executor.last_actions if ran else [],
         str(reason),
     )
     return rollout_of([*done, failed], executor.low.size)
-
-
-def _flat(state: State) -> np.ndarray:
-    return state_features(state)[1]
 
 
 def refine(
@@ -199,116 +273,72 @@ def refine(
     matching state and records new refutations (see :mod:`bpns.planning.nogoods`);
     ``prefixes`` lets the refinement start after the deepest prefix already refined.
     """
-    if len(skills) != len(plan.operators):
-        raise ValueError(
-            f"need one skill per plan step: {len(skills)} skills, {len(plan.operators)} steps"
-        )
-    for skill, op in zip(skills, plan.operators, strict=True):
-        if skill.operator != op.operator:
-            raise ValueError(f"skill {skill.name} does not match plan step {op}")
-    tests = [
-        completion_test(op, nxt) for op, nxt in zip(plan.operators, plan.atoms[1:], strict=True)
-    ]
-    counters = _Counters(len(plan.operators))
+    steps = _steps(plan, skills, task, memo)
+    n = len(steps)
+    counters = _Counters(n)
     executor = SkillExecutor(env, task, RolloutConfig.of(config), deadline)
-    n = len(plan.operators)
-    keys = [
-        NogoodMemo.step_key(op, t.must_hold, t.must_not_hold)
-        for op, t in zip(plan.operators, tests, strict=True)
-    ]
-    segments: list[_Segment | None] = [None] * n
-    tries = [0] * n
-    successes = [0] * n  # successful samples since the current arrival at step i
-    horizon_hit = [False] * n  # a failure that depends on the prefix's length
-    # successful subgoals since the current arrival at step i (their continuations failed
-    # whenever refinement is back at step i)
-    refuted: list[list[np.ndarray] | None] = [[] if memo is not None else None for _ in range(n)]
-    starts: list[State] = [task.init] * (n + 1)  # state at the start of step i
-    used = [0] * (n + 1)  # actions taken before step i
     i = 0
-    for seg in prefixes.longest(keys) if prefixes is not None else ():
-        segments[i], tries[i], successes[i] = seg, 1, 1
-        if refuted[i] is not None:
-            refuted[i].append(seg.subgoal)
-        starts[i + 1] = seg.states[-1]
-        used[i + 1] = used[i] + len(seg.actions)
-        i += 1
+    for seg in prefixes.longest([s.key for s in steps]) if prefixes is not None else ():
+        steps[i].tries = 1
+        i = _advance(steps, i, seg)
     reason: FailureReason | None = None
     furthest: Rollout | None = None
     try:
         while i < n:
-            exhausted = tries[i] >= config.n_samples
-            if exhausted and memo is not None and not horizon_hit[i]:
-                memo.add(keys[i] if successes[i] == 0 else tuple(keys[i:]), _flat(starts[i]))
-            elif tries[i] == 0 and memo is not None:  # a fresh arrival at step i
-                x = _flat(starts[i])
-                if memo.refuted(keys[i], x) or memo.refuted(tuple(keys[i:]), x):
-                    counters.failed(i, FailureReason.NOGOOD)
-                    exhausted = True
-            if exhausted:
-                if i > 0:  # a suffix refuted only for lack of time steps is not recorded
-                    horizon_hit[i - 1] |= horizon_hit[i]
-                tries[i], successes[i], horizon_hit[i] = 0, 0, False
-                if refuted[i] is not None:
-                    refuted[i] = []
+            step = steps[i]
+            if _exhausted(steps, i, config.n_samples, memo, counters):
+                _backtrack(steps, i)
                 if i == 0:
                     reason = FailureReason.EXHAUSTED
                     break
                 i -= 1
                 counters.backtracks += 1
                 continue
-            tries[i] += 1
-            out = _sample(
-                executor,
-                counters,
-                config.nogood_atol,
-                skills[i],
-                plan.operators[i],
-                tests[i],
-                starts[i],
-                used[i],
-                rng,
-                refuted[i],
-            )
+            step.tries += 1
+            out = _sample(executor, counters, config.nogood_atol, step, rng)
             if isinstance(out, FailureReason):
                 counters.failed(i, out)
-                horizon_hit[i] |= out is FailureReason.TASK_HORIZON
+                step.horizon_hit |= out is FailureReason.TASK_HORIZON
                 ran = len(executor.last_actions) if out not in NOT_EXECUTED else 0
-                reached = (i, used[i] + ran)
-                if furthest is None or reached > furthest.progress:
-                    furthest = further(furthest, _attempt(plan, segments, i, executor, out))
+                if furthest is None or (i, step.used + ran) > furthest.progress:
+                    furthest = further(furthest, _attempt(steps, i, executor, out))
                 continue
-            successes[i] += 1
             counters.step_successes[i] += 1
-            if refuted[i] is not None:
-                refuted[i].append(out.subgoal)
-            segments[i] = out
-            starts[i + 1] = out.states[-1]
-            used[i + 1] = used[i] + len(out.actions)
-            i += 1
+            i = _advance(steps, i, out)
             if prefixes is not None:
-                prefixes.add(keys[:i], segments[:i])
+                prefixes.add([s.key for s in steps[:i]], [s.segment for s in steps[:i]])
     except ExecutionTimeout:
         counters.failed(min(i, n - 1), FailureReason.TIMEOUT)
         reason = FailureReason.TIMEOUT
         if i < n:
-            timed_out = _attempt(plan, segments, i, executor, FailureReason.TIMEOUT)
-            furthest = further(furthest, timed_out)
+            furthest = further(furthest, _attempt(steps, i, executor, FailureReason.TIMEOUT))
     stats = counters.freeze(executor.sim_steps)
     if reason is not None:
         return RefinementResult(
             False, np.zeros((0, executor.low.size)), (), (), (), (), (), reason, stats, furthest
         )
-    segs = [s for s in segments if s is not None]
+    return _refined(steps, skills, plan, task, executor.low.size, stats)
+
+
+def _refined(
+    steps: list[_Step],
+    skills: Sequence[Skill],
+    plan: AbstractPlan,
+    task: Task,
+    action_dim: int,
+    stats: RefinementStats,
+) -> RefinementResult:
+    """The successful result: every step's segment, one after the other."""
+    segs = [s.segment for s in steps if s.segment is not None]
     actions = [a for s in segs for a in s.actions]
     return RefinementResult(
         success=True,
-        actions=np.array(actions, dtype=np.float64).reshape(len(actions), executor.low.size),
+        actions=np.array(actions, dtype=np.float64).reshape(len(actions), action_dim),
         states=(task.init, *(x for s in segs for x in s.states)),
         skills=tuple(skills),
         operators=plan.operators,
         subgoals=tuple(s.subgoal for s in segs),
-        step_starts=tuple(used[:n]),
+        step_starts=tuple(s.used for s in steps),
         reason=None,
         stats=stats,
     )

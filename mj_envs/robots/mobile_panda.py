@@ -135,22 +135,11 @@ def base_pose(ids: BaseIds, data: mujoco.MjData) -> np.ndarray:
     return ids.origin + data.qpos[ids.qpos]
 
 
-def commanded_base_pose(ids: BaseIds, data: mujoco.MjData) -> np.ndarray:
-    """The actuators' targets as a world pose (x, y, yaw)."""
-    return ids.origin + data.ctrl[ids.act]
-
-
 def command_base(ids: BaseIds, data: mujoco.MjData, offset: np.ndarray, config: BaseConfig) -> None:
     """Set the base targets to the measured pose + ``offset`` = (dx, dy, dyaw) (world frame),
     bounded by ``max_offset`` / ``max_yaw_offset``."""
     bound = np.array([config.max_offset, config.max_offset, config.max_yaw_offset])
     data.ctrl[ids.act] = data.qpos[ids.qpos] + np.clip(offset, -bound, bound)
-
-
-def reset_base(ids: BaseIds, data: mujoco.MjData) -> None:
-    """The base at rest at its start pose, targets there."""
-    data.qpos[ids.qpos] = 0.0
-    data.ctrl[ids.act] = 0.0
 
 
 def to_base_frame(yaw: float, v: np.ndarray) -> np.ndarray:

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from bpns.environment import Capabilities
 from bpns.structs import (
     GroundAtom,
     LiftedAtom,
@@ -62,6 +63,8 @@ class StackEnv(MujocoEnv):
     predicates = PREDICATES
     contact_predicates = PREDICATES
     goal_predicates = frozenset({ON})
+    # what it offers beyond the required members: its hand-written skills (defined below)
+    capabilities = Capabilities(oracle_skills=lambda: oracle_skills())
 
     def sample_layout(self, rng: np.random.Generator, train: bool) -> TaskLayout:
         arena = make_arena("stack")
@@ -99,11 +102,13 @@ class StackEnv(MujocoEnv):
     def demonstrator(self, task: Task, rng: np.random.Generator) -> StackDemonstrator:
         return StackDemonstrator(task)
 
-    def oracle_skills(self) -> list[Skill]:
-        return [
-            Skill(PICK, PickPolicy(), PickSampler()),
-            Skill(STACK, StackPolicy(), StackSampler()),
-        ]
+
+def oracle_skills() -> list[Skill]:
+    """Hand-written Pick and Stack: what ``--approach oracle`` plans with."""
+    return [
+        Skill(PICK, PickPolicy(), PickSampler()),
+        Skill(STACK, StackPolicy(), StackSampler()),
+    ]
 
 
 # -- behaviours shared by the demonstrator and the oracle skills ---------------------------

@@ -8,7 +8,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.structs import Object, Predicate, Skill, State, Task, Type
+from bpns.environment import Capabilities
+from bpns.structs import Object, Predicate, State, Task, Type
 from ik.orientation import rotation_delta, yaw_tilt_from_matrix
 from mj_envs.base import MujocoEnv, TaskLayout
 from mj_envs.domains.coffee import scene
@@ -69,9 +70,12 @@ class CoffeeEnv(MujocoEnv):
     # Paper appendix B: N_abstract = 1000 for Coffee (the first abstract plans do not twist).
     # Twisting the pot by its knob and letting go returns to the abstract state it started
     # from (only the pot's rotation changed), so plans may revisit an abstract state once.
-    planning_defaults = {"n_abstract": 1000, "max_state_repeats": 1}
     # No near-goal policy features (docs/METHOD.md): with sampled subgoals over litres,
     # heat and angles they cost more than they gave (20 eval tasks: 19 -> 15 solved).
+    capabilities = Capabilities(
+        planning_defaults={"n_abstract": 1000, "max_state_repeats": 1},
+        oracle_skills=oracle_skills,
+    )
     controller_config = CONTROLLER
 
     @property
@@ -293,6 +297,3 @@ class CoffeeEnv(MujocoEnv):
     # -- the domain's oracles -----------------------------------------------------------
     def demonstrator(self, task: Task, rng: np.random.Generator) -> CoffeeDemonstrator:
         return CoffeeDemonstrator(task, rng)
-
-    def oracle_skills(self) -> list[Skill]:
-        return oracle_skills()

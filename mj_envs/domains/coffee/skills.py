@@ -28,7 +28,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.planning.config import PlanningConfig
 from bpns.structs import LiftedAtom, Object, Skill, State, STRIPSOperator, Variable
 from mj_envs.domains.coffee.behaviours import (
     APPROACH_CLEARANCE,
@@ -94,7 +93,6 @@ OPEN = 0.038  # fingers this open (per finger) count as open
 GRASP_NOISE, PLACE_NOISE, PRESS_NOISE = 0.002, 0.015, 0.004
 UPRIGHT = 0.15  # pot tilt below which the pot counts as upright
 SPOUT_ALIGNED, SPOUT_OFF = 0.006, 0.02
-PLANNING_CONFIG = PlanningConfig(n_abstract=1000, n_samples=3, timeout=120.0, max_skill_horizon=250)
 
 
 class Unreachable(ValueError):

@@ -7,7 +7,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.structs import Object, Predicate, Skill, State, Task, Type
+from bpns.environment import Capabilities
+from bpns.structs import Object, Predicate, State, Task, Type
 from mj_envs.base import MujocoEnv, TaskLayout
 from mj_envs.domains.cover import scene
 from mj_envs.domains.cover.demonstrator import CoverDemonstrator
@@ -35,6 +36,7 @@ class CoverEnv(MujocoEnv):
     """Pick blocks and place them so that they cover target pads."""
 
     name = "cover"
+    capabilities = Capabilities(oracle_skills=oracle_skills)
 
     @property
     def types(self) -> frozenset[Type]:
@@ -116,6 +118,3 @@ class CoverEnv(MujocoEnv):
     # -- the domain's oracles -----------------------------------------------------------
     def demonstrator(self, task: Task, rng: np.random.Generator) -> CoverDemonstrator:
         return CoverDemonstrator(task, rng)
-
-    def oracle_skills(self) -> list[Skill]:
-        return oracle_skills()

@@ -44,7 +44,7 @@ Rules (final, as simulated):
 * **Skills.** MoveToDoor (drive to the door's approach pose on a planned path, then put
   the fingers on its handle: TouchingDoor is where the demonstrations' segments end) and
   MoveThroughDoor (straight through the open doorway until InRoom of the far room) are
-  *given*: ``given_skills()`` (:mod:`bpns.learning.given`), policies on the base motion
+  *given* (``capabilities.given_skills``, :mod:`bpns.learning.given`), policies on the base motion
   planner (:mod:`mj_envs.domains.doors.motion`, a seeded RRT-Connect among walls, obstacles and
   closed leaves). OpenDoor (grip, turn to the angle, wait, let go) is learned. Operators
   are learned for all four (:mod:`mj_envs.domains.doors.skills` has the oracle's).
@@ -60,8 +60,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.learning.given import GivenSkill
-from bpns.structs import GroundAtom, Object, Predicate, Skill, Task, Type
+from bpns.environment import Capabilities
+from bpns.structs import GroundAtom, Object, Predicate, Task, Type
 from ik import ControllerConfig
 from mj_envs.base import MujocoEnv, TaskLayout
 from mj_envs.domains.doors.demonstrator import DoorsDemonstrator
@@ -96,8 +96,11 @@ class DoorsEnv(MujocoEnv):
     """Reach a target room through latched sliding doors (paper App. A, Doors)."""
 
     name = "doors"
-    contact_settle_steps = 4
-    default_camera = "follow"  # the base travels rooms away: the overview shows it tiny
+    # MoveToDoor and MoveThroughDoor are given: motion-planned skills learning keeps.
+    # Videos follow the base: it travels rooms away, and the overview shows it tiny.
+    capabilities = Capabilities(
+        oracle_skills=oracle_skills, given_skills=given_skills, default_camera="follow"
+    )
     base_config = BaseConfig()
     controller_config = ControllerConfig(
         workspace_low=(0.2, -0.5, -0.06),
@@ -305,10 +308,3 @@ class DoorsEnv(MujocoEnv):
     # -- the domain's oracles ----------------------------------------------------------
     def demonstrator(self, task: Task, rng: np.random.Generator) -> DoorsDemonstrator:
         return DoorsDemonstrator(task)
-
-    def oracle_skills(self) -> list[Skill]:
-        return oracle_skills()
-
-    def given_skills(self) -> list[GivenSkill]:
-        """MoveToDoor and MoveThroughDoor: motion-planned skills learning keeps as given."""
-        return given_skills()

@@ -8,7 +8,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.structs import Object, Predicate, Skill, Task, Type
+from bpns.environment import Capabilities
+from bpns.structs import Object, Predicate, Task, Type
 from mj_envs.base import MujocoEnv, TaskLayout
 from mj_envs.domains.stick_button import scene
 from mj_envs.domains.stick_button.demonstrator import StickButtonDemonstrator
@@ -41,9 +42,16 @@ class StickButtonEnv(MujocoEnv):
     name = "stick_button"
     # Paper appendix B: many abstract plans are not refinable here (whether a button is
     # within reach is not in the predicates), so the planner may try up to 1000.
-    planning_defaults = {"n_abstract": 1000}
-    # The demonstrator switches within millimetres of its goals (close the fingers, press).
-    learning_defaults = {"near_goal_scale": 0.01}
+    # The demonstrator switches within millimetres of its goals (close the fingers, press):
+    # near_goal_scale. Demonstrations with signal-dependent DART noise (docs/METHOD.md,
+    # "Learning from few demonstrations"): without it the cloned stick press kept rising
+    # wherever it had overshot the demonstrations' travel height.
+    capabilities = Capabilities(
+        planning_defaults={"n_abstract": 1000},
+        learning_defaults={"near_goal_scale": 0.01},
+        oracle_skills=oracle_skills,
+        demo_noise=0.5,
+    )
     controller_config = CONTROLLER
 
     @property
@@ -135,6 +143,3 @@ class StickButtonEnv(MujocoEnv):
     # -- the domain's oracles -----------------------------------------------------------
     def demonstrator(self, task: Task, rng: np.random.Generator) -> StickButtonDemonstrator:
         return StickButtonDemonstrator(task, rng)
-
-    def oracle_skills(self) -> list[Skill]:
-        return oracle_skills()

@@ -21,7 +21,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.planning.config import PlanningConfig
 from bpns.structs import LiftedAtom, Object, Skill, State, STRIPSOperator, Variable
 from mj_envs.domains.stick_button.behaviours import (
     FINGER_REACH,
@@ -58,10 +57,6 @@ XY_NOISE = 0.004  # subgoal jitter of press points (the cap is 4.4 cm wide)
 ALIGNED_HIGH, ALIGNED_LOW = 0.006, 0.012  # xy error to start / keep descending
 STICK_BACK_MIN_X = 0.12  # the held stick's back end must stay clear of the robot's base
 FINGERS_CLOSED, FINGERS_OPEN = 0.004, 0.035
-# Plan with many abstract plans (paper: 1000 for Stick Button) and few samples per step:
-# oracle samplers seldom need a second try, and each try of a failing step re-simulates
-# the steps before it.
-PLANNING_CONFIG = PlanningConfig(n_abstract=1000, n_samples=1, timeout=60.0, max_skill_horizon=150)
 
 
 class Unreachable(ValueError):

@@ -1,0 +1,126 @@
+"""Which learned skill is weak, and why: closed-loop tests of each skill on held-out demos.
+
+    python scripts/skill_diagnostics.py SKILLS DEMOS --first 900 --count 100 [--samples 5]
+
+For every segment of the held-out demonstrations ``DEMOS[first : first + count]`` (not
+used for learning when ``first`` is past ``bpns learn --limit``) that a learned skill
+explains, the skill is rolled out from the segment's exact first simulator state with
+the planner's own rollout (:class:`bpns.execution.SkillExecutor`, the completion test
+refinement uses) in three ways:
+
+- ``demo subgoal``: the policy towards the subgoal the demonstration reached. Failures
+  here are the policy's (imitation error, no recovery from a deviation).
+- ``sampled``: ``--samples`` subgoals from the learned sampler, each rolled out. The
+  rate is what refinement sees per sample; the gap to ``demo subgoal`` is the sampler's.
+- ``steps``: simulated steps per successful rollout against the demonstrated segment's
+  length (a skill that dawdles costs planning time even when it succeeds).
+
+Failure reasons are the planner's (``bpns.failures``). Nothing is written; the table
+goes to stdout. The environment is the one the skills directory records.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections import Counter, defaultdict
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bpns.datasets import iter_demonstrations
+from bpns.execution import Executed, RolloutConfig, SkillExecutor, completion_test
+from bpns.learned import load_learned
+from bpns.learning.config import learning_config_for
+from bpns.learning.gnn_meta import label_segment
+from bpns.learning.segmentation import segment_demonstration
+from bpns.planning.config import planning_config_for
+
+
+@dataclass
+class SkillTally:
+    segments: int = 0
+    demo_ok: int = 0
+    demo_fail: Counter = field(default_factory=Counter)
+    sampled: int = 0
+    sampled_ok: int = 0
+    sampled_fail: Counter = field(default_factory=Counter)
+    steps_ok: list[int] = field(default_factory=list)
+    steps_demo: list[int] = field(default_factory=list)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("skills")
+    parser.add_argument("demos")
+    parser.add_argument("--first", type=int, required=True, help="first held-out demo index")
+    parser.add_argument("--count", type=int, default=100)
+    parser.add_argument("--samples", type=int, default=5, help="sampled subgoals per segment")
+    parser.add_argument("--per-skill", type=int, default=40, help="segments per skill at most")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+
+    env, learned = load_learned(args.skills)
+    skills = learned.skills
+    operators = [s.operator for s in skills]
+    settle = learning_config_for(env).settle_steps
+    config = planning_config_for(env)
+    rng = np.random.default_rng(args.seed)
+    tallies: dict[str, SkillTally] = defaultdict(SkillTally)
+    indices = range(args.first, args.first + args.count)
+    for demo in iter_demonstrations(args.demos, env, indices):
+        executor = SkillExecutor(env, demo.task, RolloutConfig.of(config))
+        for seg in segment_demonstration(demo, env.predicates, env.contact_predicates, settle):
+            label = label_segment(seg, operators)
+            if label is None:
+                continue
+            k, binding = label
+            skill = skills[k]
+            tally = tallies[skill.name]
+            if tally.segments >= args.per_skill or not hasattr(skill.policy, "dims"):
+                continue  # enough of this skill, or a given (not learned) skill
+            tally.segments += 1
+            ground = skill.operator.ground(binding)
+            test = completion_test(ground, ground.apply(seg.init_atoms))
+            start = seg.states[0]
+            scope = skill.policy.dims.scope(binding)
+            demo_goal = seg.states[-1].vec(scope)
+            tally.steps_demo.append(len(seg.actions))
+            out = executor.execute(skill, binding, demo_goal, start, test)
+            if isinstance(out, Executed):
+                tally.demo_ok += 1
+            else:
+                tally.demo_fail[str(out)] += 1
+            for _ in range(args.samples):
+                subgoal = np.asarray(skill.sampler(start, binding, rng), dtype=np.float64)
+                tally.sampled += 1
+                out = executor.execute(skill, binding, subgoal, start, test)
+                if isinstance(out, Executed):
+                    tally.sampled_ok += 1
+                    tally.steps_ok.append(len(out.actions))
+                else:
+                    tally.sampled_fail[str(out)] += 1
+    print(f"{args.skills}: held-out demos {args.first}..{args.first + args.count - 1}")
+    print(
+        "| skill | segments | demo subgoal | sampled | steps (sampled ok / demo) "
+        "| failures (demo; sampled) |"
+    )
+    print("|---|---:|---:|---:|---:|---|")
+    for skill in skills:
+        t = tallies.get(skill.name)
+        if t is None or t.segments == 0:
+            continue
+        steps = (
+            f"{np.median(t.steps_ok):.0f} / {np.median(t.steps_demo):.0f}" if t.steps_ok else "-"
+        )
+        fails = "; ".join(
+            ", ".join(f"{r} {n}" for r, n in sorted(c.items())) or "-"
+            for c in (t.demo_fail, t.sampled_fail)
+        )
+        print(
+            f"| {skill.name} | {t.segments} | {t.demo_ok}/{t.segments} | "
+            f"{t.sampled_ok}/{t.sampled} | {steps} | {fails} |"
+        )
+
+
+if __name__ == "__main__":
+    main()
