@@ -1,5 +1,12 @@
 """Write artifacts atomically: to a temporary sibling, then rename over the target;
-replace whole directories so that a crash at any point loses neither version."""
+replace whole directories so that a crash at any point loses neither version.
+
+A temporary is named ``.NAME.tmp-<pid>-<host>-<random>``: a process killed while writing
+(SIGKILL, power loss) cannot delete it, so the next write of the same target deletes
+the temporaries of processes on this host that no longer run
+(:func:`remove_stale_temporaries`). A full disk or a read-only filesystem is reported
+by :func:`storage_problem` as one line.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +14,9 @@ import contextlib
 import ctypes
 import ctypes.util
 import errno
+import hashlib
 import os
+import platform
 import shutil
 import sys
 import tempfile
@@ -15,14 +24,101 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+#: errors that say the filesystem cannot take the write (not that the input is bad)
+STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG})
+
+
+def storage_problem(err: BaseException, target: str | os.PathLike | None = None) -> str | None:
+    """One line saying why a write (of ``target``, if known) failed, if ``err`` is the
+    filesystem refusing it (a full disk, a quota, a read-only filesystem), else None.
+    Writes here are atomic, so nothing was replaced and no partial file is left."""
+    if not isinstance(err, OSError) or err.errno not in STORAGE_ERRNOS:
+        return None
+    if target is None and err.filename:
+        target = _target_of(err.filename)
+    where = f" {target}" if target is not None else ""
+    return (
+        f"cannot write{where}: {os.strerror(err.errno)} (nothing was replaced; free space "
+        "or pick another place and run the command again)"
+    )
+
+
+def _target_of(filename: str | bytes | os.PathLike) -> str:
+    """The target a temporary stands for (``dir/.NAME.tmp-...`` -> ``dir/NAME``)."""
+    path = Path(os.fsdecode(filename))
+    name = path.name
+    if name.startswith(".") and ".tmp-" in name:
+        return str(path.with_name(name[1:].split(".tmp-", 1)[0]))
+    return str(path)
+
+
+def _host_tag() -> str:
+    return hashlib.sha1(platform.node().encode()).hexdigest()[:8]
+
+
+def temporary_prefix(target: Path) -> str:
+    """The name prefix of this process's temporaries for ``target``."""
+    return f".{target.name}.tmp-{os.getpid()}-{_host_tag()}-"
+
+
+_STARTED = time.time()  # (about) when this process started: when bpns was imported
+
+
+def _older_than_this_process(path: Path) -> bool:
+    try:
+        return path.lstat().st_mtime < _STARTED
+    except OSError:
+        return False
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's process
+        return True
+    return True
+
+
+def remove_stale_temporaries(target: str | os.PathLike) -> list[Path]:
+    """Delete the temporaries of ``target`` left by writes whose process died on this
+    host (each name carries its writer's pid and host); returns what was deleted.
+    Temporaries of running processes, or of other hosts, are left alone. A temporary
+    named before pids were (``.NAME.tmp-<random>``) goes if it is older than this
+    process: no write this process started made it."""
+    target = Path(target)
+    prefix, host = f".{target.name}.tmp-", _host_tag()
+    removed: list[Path] = []
+    try:
+        entries = list(target.parent.iterdir())
+    except OSError:
+        return removed
+    for entry in entries:
+        if not entry.name.startswith(prefix):
+            continue
+        pid, _, rest = entry.name[len(prefix) :].partition("-")
+        if not (pid.isdigit() and len(rest) > 9 and rest[8] == "-"):  # the earlier naming
+            if not _older_than_this_process(entry):
+                continue
+        elif not rest.startswith(host + "-") or int(pid) == os.getpid() or _alive(int(pid)):
+            continue
+        if entry.is_dir() and not entry.is_symlink():
+            shutil.rmtree(entry, ignore_errors=True)
+        else:
+            entry.unlink(missing_ok=True)
+        removed.append(entry)
+    return removed
+
 
 @contextlib.contextmanager
 def atomic_path(target: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
     """Yield a temporary path next to ``target``; it replaces ``target`` only on success."""
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_temporaries(target)
     fd, tmp = tempfile.mkstemp(
-        prefix=f".{target.name}.", suffix=suffix or target.suffix, dir=target.parent
+        prefix=temporary_prefix(target), suffix=suffix or target.suffix, dir=target.parent
     )
     os.close(fd)
     tmp_path = Path(tmp)

@@ -15,13 +15,15 @@ Layout::
 Files are written atomically (temp file + rename); reading validates structure and
 turns h5py's low-level errors into one :class:`DatasetError` that names the file.
 Learning reads only features, actions and goals: ``features_only=True`` loads those
-(3-5x faster, ``scripts/bench_loading.py``) without compiling each demo's scene.
+(3-5x faster, ``scripts/bench_loading.py``) without compiling each demo's scene (the
+flat states are still read and checked finite).
 """
 
 from __future__ import annotations
 
 import json
 import os
+import stat
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 
@@ -86,6 +88,17 @@ def read_attributes(path: str | os.PathLike) -> tuple[dict, list[dict]]:
 
 def _plain(value: object) -> object:
     return value.item() if isinstance(value, np.generic) else value
+
+
+def min_demo_bytes(env: Environment, task: Task) -> int:
+    """A lower bound of the bytes one demonstration of ``task`` takes in a file: its
+    scene's MJCF and two state rows (its first and last) and one action. Real ones are
+    several times larger (every step is a row), so ``n`` times this that does not fit
+    on a disk is certain not to fit."""
+    init = task.init
+    assert init.sim is not None, "a task's initial state carries its simulator state"
+    row = init.sim.flat.nbytes + sum(np.asarray(v).nbytes for v in init.data.values())
+    return len(env.save_world(init.sim.world).encode()) + 2 * row + 8 * len(env.action_low)
 
 
 def _write_demo(g: h5py.Group, env: Environment, demo: Demonstration) -> None:
@@ -162,10 +175,24 @@ def _names(data: h5py.Group, path: str | os.PathLike) -> list[str]:
         raise DatasetError(f"{path}: {err}") from None
 
 
+def not_a_demo_file(path: Path) -> str | None:
+    """Why ``path`` cannot be a demonstration file without opening it (missing, a
+    directory, a FIFO or device: reading one could block or never end), else None."""
+    if not path.exists():
+        return f"{path}: no such demonstration file"
+    mode = path.stat().st_mode
+    if stat.S_ISDIR(mode):
+        return f"{path}: is a directory, not a demonstration file"
+    if not stat.S_ISREG(mode):
+        return f"{path}: not a regular file (a FIFO, socket or device), not a demonstration file"
+    return None
+
+
 def _open(path: str | os.PathLike) -> h5py.File:
     p = Path(path)
-    if not p.is_file():
-        raise DatasetError(f"{p}: no such demonstration file")
+    problem = not_a_demo_file(p)
+    if problem is not None:
+        raise DatasetError(problem)
     try:
         return h5py.File(p, "r")
     except OSError as err:
@@ -211,12 +238,14 @@ def _read_demo(g: h5py.Group, env: Environment, features_only: bool) -> Demonstr
     feats = {o: checks.read_matrix(feat_group, n, o.type.dim) for n, o in objects.items()}
     ds = checks.member(g, "states", h5py.Dataset)
     declared = ds.shape if len(ds.shape) == 2 else (-1, -1)  # (rows, flat state size)
-    flats = None if features_only else checks.read_matrix(g, "states", declared[1])
-    rows = declared[0] if flats is None else len(flats)
+    # read (and checked finite) also when learning skips them: a file with damaged
+    # simulator states is refused by every command alike, not only by replay and render
+    flats = checks.read_matrix(g, "states", declared[1])
+    rows = len(flats)
     if rows != len(actions) + 1 or any(len(v) != rows for v in feats.values()):
         raise ValueError("states, features and actions have inconsistent lengths")
     sims: list[SimState | None] = [None] * rows
-    if flats is not None:
+    if not features_only:
         world = env.load_world(checks.text_attr(g, "world"))
         # only the environment knows its flat state size: let it load the first state
         env.state_from_flat(world, flats[0], State({o: v[0] for o, v in feats.items()}))

@@ -8,11 +8,14 @@ points are the single source of environment names (CLI, workers, Gymnasium ids).
 
 from __future__ import annotations
 
-from importlib.metadata import entry_points
+from collections.abc import Callable
+from importlib.metadata import EntryPoint, entry_points
+from typing import TypeVar
 
 from bpns.environment import Environment, declaration_problem
 
 GROUP = "bpns.environments"
+T = TypeVar("T")
 
 
 class UnknownEnvironmentError(KeyError):
@@ -26,6 +29,24 @@ class EnvironmentDeclarationError(UnknownEnvironmentError):
     unknown name as one line reports this alike."""
 
 
+class PluginError(RuntimeError):
+    """An installed entry point (an environment or approach plugin) that fails to load or
+    to build: its import raised, it names nothing, or constructing it raised."""
+
+
+def load_plugin(ep: EntryPoint, what: str, make: Callable[[object], T]) -> T:
+    """``make(ep.load())``; any exception raised by the plugin's code becomes a
+    :class:`PluginError` naming the plugin, its entry point and the error (one line)."""
+    try:
+        return make(ep.load())
+    except Exception as err:  # noqa: BLE001  plugin code may raise anything
+        detail = str(err).strip().splitlines()[0] if str(err).strip() else ""
+        raise PluginError(
+            f"{what} plugin {ep.name!r} (entry point {ep.name} = {ep.value}) cannot be "
+            f"loaded: {type(err).__name__}" + (f": {detail}" if detail else "")
+        ) from err
+
+
 def environment_names() -> list[str]:
     return sorted(ep.name for ep in entry_points(group=GROUP))
 
@@ -35,7 +56,7 @@ def make_environment(name: str) -> Environment:
     if not matches:
         known = ", ".join(environment_names()) or "none installed"
         raise UnknownEnvironmentError(f"unknown environment {name!r}; known: {known}")
-    env = matches[0].load()()
+    env = load_plugin(matches[0], "environment", lambda factory: factory())
     if problem := declaration_problem(env):
         raise EnvironmentDeclarationError(problem)
     return env

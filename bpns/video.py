@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import os
+import shutil
 from collections.abc import Iterable, Iterator, Sequence
+from pathlib import Path
 
 import imageio.v2 as imageio
+import imageio_ffmpeg
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
@@ -15,36 +18,71 @@ from bpns.rollouts import PlanStep, outcome_caption, step_captions
 from bpns.structs import State
 
 
+class VideoError(RuntimeError):
+    """Rendering or encoding failed (no OpenGL backend, no ffmpeg, a bad camera, a full
+    disk ...)."""
+
+
 def write_mp4(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: int = 30) -> int:
+    """Encode ``frames`` to ``path``; returns how many. The file appears only once ffmpeg
+    finished it and it reads back whole: ffmpeg itself exits quietly on a write error
+    (a full disk) and would leave a truncated mp4 behind."""
     n = 0
-    with atomic_path(path, ".mp4") as tmp:
-        writer = imageio.get_writer(
-            tmp,
-            format="FFMPEG",
-            fps=fps,
-            codec="libx264",
-            quality=7,
-            macro_block_size=8,
-            ffmpeg_log_level="error",
-        )
-        try:
-            for frame in frames:
-                writer.append_data(frame)
-                n += 1
-        finally:
-            writer.close()
-        if n == 0:
-            raise ValueError("no frames to write")
+    try:
+        with atomic_path(path, ".mp4") as tmp:
+            writer = imageio.get_writer(
+                tmp,
+                format="FFMPEG",
+                fps=fps,
+                codec="libx264",
+                quality=7,
+                macro_block_size=8,
+                ffmpeg_log_level="fatal",  # its errors are ours to report (one line)
+            )
+            try:
+                for frame in frames:
+                    writer.append_data(frame)
+                    n += 1
+            finally:
+                writer.close()
+            if n == 0:
+                raise ValueError("no frames to write")
+            _check_complete(tmp, n, Path(path))
+    except OSError as err:  # e.g. the pipe to an ffmpeg that died of a full disk
+        raise VideoError(f"cannot write {path}: {_reason(err, Path(path))}") from None
     return n
 
 
+def _reason(err: OSError, path: Path) -> str:
+    if err.errno is not None and err.strerror:
+        return err.strerror
+    return _space_note(path) or str(err).strip().splitlines()[0]
+
+
+def _space_note(path: Path) -> str:
+    try:
+        free = shutil.disk_usage(path.parent).free
+    except OSError:
+        return ""
+    return f"no space left on the device ({free} bytes free)" if free < 1 << 20 else ""
+
+
+def _check_complete(tmp: Path, n: int, path: Path) -> None:
+    try:
+        readable, _ = imageio_ffmpeg.count_frames_and_secs(str(tmp))
+    except (RuntimeError, OSError):
+        readable = 0
+    if readable != n:
+        why = _space_note(path) or "ffmpeg did not finish it"
+        raise VideoError(f"cannot write {path}: {readable} of {n} frames readable: {why}")
+
+
 def write_png(path: str | os.PathLike, frame: np.ndarray) -> None:
-    with atomic_path(path, ".png") as tmp:
-        imageio.imwrite(tmp, frame, format="PNG")
-
-
-class VideoError(RuntimeError):
-    """Rendering or encoding failed (no OpenGL backend, no ffmpeg, a bad camera ...)."""
+    try:
+        with atomic_path(path, ".png") as tmp:
+            imageio.imwrite(tmp, frame, format="PNG")
+    except OSError as err:
+        raise VideoError(f"cannot write {path}: {_reason(err, Path(path))}") from None
 
 
 def default_camera(env: Environment) -> str:

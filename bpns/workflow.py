@@ -18,6 +18,7 @@ from bpns.demos import ReplayReport
 from bpns.environment import Environment
 
 if TYPE_CHECKING:
+    from bpns.approaches.base import ApproachEntry
     from bpns.learning.baselines import BaselinesConfig
     from bpns.learning.config import LearningConfig
     from bpns.learning.pipeline import LearnedSkills
@@ -169,6 +170,20 @@ class LearnedRun:
                 + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in self.baseline_seconds)
             )
         return out
+
+
+def baselines_needed(approaches: Iterable[ApproachEntry]) -> tuple[str, ...]:
+    """The baselines (``bpns.learning.baselines.STAGES``) that ``approaches`` plan with,
+    to learn beside the skills: an approach's ``learned_stages`` name them; one that
+    needs baselines but names none of them (a plugin) gets them all."""
+    from bpns.learning.baselines import STAGES
+
+    needed: set[str] = set()
+    for entry in approaches:
+        if entry.needs_baselines:
+            named = set(entry.learned_stages or ()) & set(STAGES)
+            needed |= named or set(STAGES)
+    return tuple(s for s in STAGES if s in needed)
 
 
 def learn_to_directory(

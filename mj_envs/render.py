@@ -59,6 +59,12 @@ def render_states(
     dressed = _render_model(world)
     model = dressed.model if dressed is not None else world.model
     data = mujoco.MjData(model) if dressed is not None else world.data
+    limit = (model.vis.global_.offwidth, model.vis.global_.offheight)
+    if width > limit[0] or height > limit[1]:  # MuJoCo's own error would look like no GL
+        raise ValueError(
+            f"{width} x {height} pixels exceed this scene's offscreen framebuffer, "
+            f"{limit[0]} x {limit[1]} (its MJCF's <visual><global offwidth offheight>)"
+        )
     try:
         renderer = mujoco.Renderer(model, height=tile_h, width=tile_w)
     except Exception as err:  # noqa: BLE001  (MuJoCo raises bare errors when GL is missing)

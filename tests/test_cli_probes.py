@@ -45,7 +45,7 @@ PROBES = [
     ((*RUN, "--seed", "-1", "--out", "{w}/r"), "whole number >= 0"),
     (("render", "{d}", "--demo", "-1"), "whole number >= 0"),
     (("demos", "--env", "cover", "--out", "{w}/dir"), "is a directory"),
-    (("demos", "--env", "cover", "--out", ""), "expected a file name"),
+    (("demos", "--env", "cover", "--out", ""), "expected a path, got ''"),
     (("demos", "--env", "cover", "--out", "."), "expected a file name"),
     (("demos", "--env", "cover", "--out", "/proc/a.h5"), "cannot write in /proc"),
     (("demos", "--env", "cover", "--out", "{w}/file/a.h5"), "is not a directory"),

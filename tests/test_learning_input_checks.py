@@ -42,6 +42,14 @@ def test_learning_refuses_non_finite_actions_naming_demo_and_step(value):
         learn_skills(demos, toy.PREDICATES, toy.CONTACT_PREDICATES, toy.fast_config(steps=1))
 
 
+@pytest.mark.parametrize("value", [1e300, -1e12])
+def test_learning_refuses_finite_but_absurd_actions_before_training(value):
+    demos = toy.demos(3, seed=0)
+    demos[0] = _with_nan_action(demos[0], 2, value)
+    with pytest.raises(DemonstrationError, match="demonstration 0: action at step 2 holds .*e"):
+        learn_skills(demos, toy.PREDICATES, toy.CONTACT_PREDICATES, toy.fast_config(steps=1))
+
+
 def test_learning_refuses_non_finite_features_naming_demo_and_step():
     demos = toy.demos(3, seed=0)
     demos[2] = _with_nan_feature(demos[2], 3)

@@ -12,6 +12,7 @@ from __future__ import annotations
 from importlib.metadata import entry_points
 
 from bpns.approaches.base import ApproachEntry
+from bpns.registry import PluginError, load_plugin
 
 GROUP = "bpns.approaches"
 
@@ -31,10 +32,10 @@ def get_approach(name: str) -> ApproachEntry:
     if not matches:
         known = ", ".join(approach_names()) or "none installed"
         raise UnknownApproachError(f"unknown approach {name!r}; known: {known}")
-    entry = matches[0].load()
+    entry = load_plugin(matches[0], "approach", lambda loaded: loaded)
     if not isinstance(entry, ApproachEntry) or entry.name != name:
-        raise TypeError(
-            f"entry point {name!r} of {GROUP} must name an ApproachEntry called {name!r}, "
-            f"got {entry!r}"
+        raise PluginError(
+            f"approach plugin {name!r} (entry point {name} = {matches[0].value}) must name "
+            f"an ApproachEntry called {name!r}, got {type(entry).__name__}"
         )
     return entry

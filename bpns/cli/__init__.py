@@ -10,10 +10,14 @@ traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Iterator, Sequence
 from types import ModuleType
 
+from bpns.atomic import storage_problem
 from bpns.cli import check_env, demos, experiment, learn, render, replay, run, skills
 from bpns.cli import eval as eval_
 from bpns.cli.common import UserError
@@ -45,14 +49,72 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    with _numeric_warnings_held() as held:
+        try:
+            code = int(COMMANDS[args.command].run(args) or 0)
+        except UserError as err:
+            return _error(str(err))
+        except BrokenPipeError:  # e.g. `bpns skills show DIR | head` stopped reading
+            return _reader_gone()
+        except OSError as err:  # a full disk or read-only filesystem while writing
+            problem = storage_problem(err)
+            if problem is None:
+                held.release()
+                raise
+            return _error(problem)
+        except KeyboardInterrupt:
+            print("bpns: interrupted", file=sys.stderr)
+            return 130
+        except BaseException:
+            held.release()
+            raise
+        held.release()
+        return code
+
+
+class _Held:
+    """RuntimeWarnings (numpy's overflow and invalid-value notes) raised by a command:
+    shown after it when it ends normally, dropped when it ends in one error line, which
+    must be the only thing the user sees."""
+
+    def __init__(self, show) -> None:
+        self.show = show  # the showwarning in place before
+        self.records: list[tuple] = []
+
+    def hold(self, message, category, filename, lineno, file=None, line=None) -> None:
+        if issubclass(category, RuntimeWarning):
+            self.records.append((message, category, filename, lineno, file, line))
+        else:
+            self.show(message, category, filename, lineno, file, line)
+
+    def release(self) -> None:
+        for record in self.records:
+            self.show(*record)
+        self.records.clear()
+
+
+@contextlib.contextmanager
+def _numeric_warnings_held() -> Iterator[_Held]:
+    with warnings.catch_warnings():  # restores showwarning afterwards
+        held = _Held(warnings.showwarning)
+        warnings.showwarning = held.hold
+        yield held
+
+
+def _error(message: str) -> int:
+    print(f"bpns: error: {message}", file=sys.stderr)
+    return 2
+
+
+def _reader_gone() -> int:
+    """stdout's reader closed the pipe: stop quietly, as a shell tool killed by SIGPIPE
+    would (exit 141), and keep Python's exit-time flush from raising again."""
     try:
-        return int(COMMANDS[args.command].run(args) or 0)
-    except UserError as err:
-        print(f"bpns: error: {err}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("bpns: interrupted", file=sys.stderr)
-        return 130
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # stdout is no file (captured)
+        pass
+    return 141
 
 
 __all__ = ["COMMANDS", "build_parser", "main"]

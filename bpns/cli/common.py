@@ -15,12 +15,20 @@ class UserError(Exception):
 
 
 def env_by_name(name: str):
-    from bpns.registry import UnknownEnvironmentError, make_environment
+    from bpns.registry import PluginError, UnknownEnvironmentError, make_environment
 
     try:
         return make_environment(name)
-    except UnknownEnvironmentError as err:
+    except (UnknownEnvironmentError, PluginError) as err:
         raise UserError(str(err)) from None
+
+
+def path_arg(text: str) -> Path:
+    """A path given on the command line; an empty one (``--out ''``) is refused instead
+    of becoming ``.``, the current directory."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected a path, got {text!r}")
+    return Path(text)
 
 
 def whole_at_least(text: str, least: int, what: str = "a whole number") -> int:
@@ -82,12 +90,27 @@ def progress(iterable, total: int, desc: str, unit: str = "task"):
     )
 
 
+def approach_by_name(name: str):
+    """The registry entry of approach ``name``; a plugin that fails to load, or an
+    unknown name, is a UserError naming it."""
+    from bpns.approaches import UnknownApproachError, get_approach
+    from bpns.registry import PluginError
+
+    try:
+        return get_approach(name)
+    except (UnknownApproachError, PluginError) as err:
+        raise UserError(str(err)) from None
+
+
 def file_env(path: Path, name: str | None):
     import h5py
 
+    from bpns.datasets import not_a_demo_file
+
     if name is None:
-        if not path.is_file():
-            raise UserError(f"{path}: no such demonstration file")
+        problem = not_a_demo_file(path)
+        if problem is not None:
+            raise UserError(problem)
         try:
             with h5py.File(path, "r") as f:
                 name = str(f.attrs.get("env", ""))
@@ -116,11 +139,11 @@ def learned_in(directory: Path, env_name: str | None = None):
     """(environment, LearnedSkills) of a skills directory, errors as UserError."""
     from bpns.learned import load_learned
     from bpns.learning.artifacts import ArtifactError
-    from bpns.registry import UnknownEnvironmentError
+    from bpns.registry import PluginError, UnknownEnvironmentError
 
     try:
         return load_learned(directory, env_name)
-    except (ArtifactError, UnknownEnvironmentError) as err:
+    except (ArtifactError, UnknownEnvironmentError, PluginError) as err:
         raise UserError(str(err)) from None
 
 
@@ -169,6 +192,7 @@ def report_evaluation(
 def evaluate_approaches(
     env,
     names,
+    *,
     skills_dir: Path | None,
     learned,
     base_planning,

@@ -3,18 +3,18 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from bpns.cli.common import (
     default_workers,
     env_by_name,
     nonnegative,
     nonnegative_float,
+    path_arg,
     positive,
     print_lines,
     progress,
 )
-from bpns.cli.paths import capped_to_cores, check_output_file
+from bpns.cli.paths import capped_to_cores, check_demos_fit, check_output_file, writing
 
 HELP = "collect demonstrations with the scripted oracle"
 
@@ -23,7 +23,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--env", required=True, help="environment name (e.g. cover)")
     p.add_argument("-n", "--num", type=positive, default=10, help="number of train tasks")
     p.add_argument("--seed", type=nonnegative, default=0)
-    p.add_argument("--out", required=True, type=Path, help="output .h5 file")
+    p.add_argument("--out", required=True, type=path_arg, help="output .h5 file")
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     p.add_argument("--workers", type=positive, default=default_workers())
     p.add_argument(
@@ -45,9 +45,18 @@ def run(args: argparse.Namespace) -> int:
 
     env = env_by_name(args.env)
     check_output_file(args.out, "--out", args.overwrite)
+    check_demos_fit(env, args.num, args.seed, args.out, "--out")
     workers = capped_to_cores(args.workers, "--workers")
-    written = collect_demos(
-        env, args.num, args.seed, args.out, workers, progress, debug=args.debug, noise=args.noise
-    )
+    with writing(args.out):
+        written = collect_demos(
+            env,
+            args.num,
+            args.seed,
+            args.out,
+            workers,
+            progress,
+            debug=args.debug,
+            noise=args.noise,
+        )
     print_lines(written)
     return 0 if written.num_written else 1

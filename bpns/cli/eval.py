@@ -4,21 +4,22 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-from pathlib import Path
 
 from bpns.cli.common import (
     UserError,
+    approach_by_name,
     default_workers,
     env_by_name,
     evaluate_approaches,
     learned_in,
     nonnegative,
+    path_arg,
     positive,
     positive_float,
     report_evaluation,
     tolerance_or_off,
 )
-from bpns.cli.paths import capped_to_cores, check_eval_outputs
+from bpns.cli.paths import capped_to_cores, check_eval_outputs, writing
 
 HELP = "solve held-out tasks by bilevel planning; results JSON + markdown table"
 
@@ -27,7 +28,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     from bpns.approaches import approach_names
 
     p.add_argument("--env", help="environment (default: the one recorded in --skills)")
-    p.add_argument("--skills", type=Path, help="skills directory (for learned approaches)")
+    p.add_argument("--skills", type=path_arg, help="skills directory (for learned approaches)")
     p.add_argument(
         "--approach",
         nargs="+",
@@ -57,11 +58,11 @@ def configure(p: argparse.ArgumentParser) -> None:
         help="tolerance (feature units) of refuted-state matching in refinement, or 'off' "
         "for the paper's plain backtracking (default: the env's or 0.005)",
     )
-    p.add_argument("--out", type=Path, help="output directory (results.json, results.md)")
+    p.add_argument("--out", type=path_arg, help="output directory (results.json, results.md)")
     p.add_argument("--workers", type=positive, default=default_workers())
     p.add_argument(
         "--video",
-        type=Path,
+        type=path_arg,
         help="render a task to this .mp4 with captions (skill and objects; the outcome at "
         "the end): --task, or the solved task with the longest plan, which shows the most "
         "skills",
@@ -98,7 +99,7 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpns.approaches import SkillSource, get_approach
+    from bpns.approaches import SkillSource
     from bpns.perturbations import PerturbationError, parse_perturbation, perturbed
     from bpns.planning.config import planning_config_for
 
@@ -111,8 +112,8 @@ def run(args: argparse.Namespace) -> int:
     if args.task is not None and args.task >= args.tasks:
         raise UserError(f"--task {args.task}: only tasks 0..{args.tasks - 1} are evaluated")
     names = list(dict.fromkeys(args.approach))
-    approaches = [get_approach(a) for a in names]
-    check_eval_outputs(args.out, args.video, names, args.overwrite)
+    approaches = [approach_by_name(a) for a in names]
+    check_eval_outputs(args.out, args.video, names, args.overwrite, args.skills)
     workers = capped_to_cores(args.workers, "--workers")
     learned = None
     if any(a.skills is SkillSource.LEARNED for a in approaches):
@@ -149,20 +150,21 @@ def run(args: argparse.Namespace) -> int:
     reports = evaluate_approaches(
         env,
         names,
-        args.skills,
-        learned,
-        base,
-        args.tasks,
-        args.seed,
-        args.planner_seed,
-        args.train,
-        not args.no_validate,
-        workers,
-        perturbation,
+        skills_dir=args.skills,
+        learned=learned,
+        base_planning=base,
+        num_tasks=args.tasks,
+        task_seed=args.seed,
+        planner_seed=args.planner_seed,
+        train=args.train,
+        validate=not args.no_validate,
+        workers=workers,
+        perturbation=perturbation,
     )
-    report_evaluation(
-        env, reports, args.out, args.video, args.seed, args.train, args.task, args.camera
-    )
+    with writing(args.out or args.video):
+        report_evaluation(
+            env, reports, args.out, args.video, args.seed, args.train, args.task, args.camera
+        )
     if args.explain:
         from bpns.reporting import explain_lines
 

@@ -14,7 +14,8 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
-from bpns.cli.common import UserError, whole_at_least
+from bpns.cli.common import UserError, path_arg, whole_at_least
+from bpns.cli.paths import check_free_space, check_output_dir
 from bpns.experiments.approach_info import approach_names
 from bpns.experiments.presets import PRESETS, SweepConfig, SweepConfigError
 
@@ -53,7 +54,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--preset", choices=list(PRESETS), default="small", help=f"what to sweep: {presets}"
     )
     parser.add_argument(
-        "--out", type=Path, help="sweep directory (default: outputs/experiments/<preset>)"
+        "--out", type=path_arg, help="sweep directory (default: outputs/experiments/<preset>)"
     )
     parser.add_argument("--env", nargs="+", help="environments (overrides the preset)")
     parser.add_argument("--demos", nargs="+", type=_count, help="demo counts (overrides)")
@@ -126,6 +127,38 @@ def sweep_config(args: argparse.Namespace) -> SweepConfig:
     return config
 
 
+def loadable(config: SweepConfig, args: argparse.Namespace):
+    """``config`` without the plugins (environments, approaches) that fail to load, and
+    its environments built: a preset (which takes every installed plugin) skips each
+    broken one with one warning line; one named on the command line is an error."""
+    from bpns.approaches import get_approach
+    from bpns.registry import PluginError, make_environment
+
+    def skip(err: PluginError, named: bool) -> None:
+        if named:
+            raise UserError(str(err)) from None
+        print(f"bpns: warning: {err}; the sweep skips it", file=sys.stderr, flush=True)
+
+    envs = {}
+    for name in config.envs:
+        try:
+            envs[name] = make_environment(name)
+        except PluginError as err:
+            skip(err, args.env is not None)
+    approaches = []
+    for name in config.approaches:
+        try:
+            get_approach(name)
+            approaches.append(name)
+        except PluginError as err:
+            skip(err, args.approach is not None)
+    if not envs or not approaches:
+        raise UserError(
+            f"preset {config.name}: no {'environment' if not envs else 'approach'} loads"
+        )
+    return config.with_overrides(envs=tuple(envs), approaches=tuple(approaches)), envs
+
+
 def command_line(config: SweepConfig, out: Path, args: argparse.Namespace) -> str:
     """The full command that reproduces ``config`` whatever the preset's defaults become."""
     argv = ["bpns", "experiment", "--preset", config.name, "--out", str(out)]
@@ -144,13 +177,17 @@ def command_line(config: SweepConfig, out: Path, args: argparse.Namespace) -> st
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpns.experiments.backends import BackendError, PoolBackend, RayBackend
+    from bpns.experiments.backends import (
+        BackendError,
+        PoolBackend,
+        RayBackend,
+        check_reachable,
+    )
     from bpns.experiments.cells import skipped_approaches
     from bpns.experiments.report import write_report
     from bpns.experiments.store import CellStore, CellStoreError
     from bpns.experiments.sweep import (
         load_finished,
-        make_environments,
         run_sweep,
         sweep_cells,
         write_sweep_file,
@@ -158,9 +195,22 @@ def run(args: argparse.Namespace) -> int:
 
     if args.ray_address and args.backend != "ray":
         raise UserError("--ray-address needs --backend ray")
-    config = sweep_config(args)
+    if args.ray_address and not (args.report_only or args.dry_run):
+        try:
+            check_reachable(args.ray_address)
+        except BackendError as err:
+            raise UserError(str(err)) from None
+    config, envs = loadable(sweep_config(args), args)
     out: Path = args.out or Path("outputs") / "experiments" / config.name
-    envs = make_environments(config.envs)
+    if args.report_only or args.dry_run:
+        if out.exists() and not out.is_dir():
+            raise UserError(f"--out {out}: exists and is not a directory")
+        if args.report_only and not (out / "cells").is_dir():
+            raise UserError(
+                f"--report-only: {out} holds no sweep (no cells/ in it); run the sweep first"
+            )
+    else:
+        check_output_dir(out, "--out")
     cells = sweep_cells(config, envs)
     store = CellStore(out)
     command = command_line(config, out, args)
@@ -181,6 +231,8 @@ def run(args: argparse.Namespace) -> int:
         for cell in cells:
             print(f"  {'done' if cell.key in finished else 'todo'}  {cell.key}")
         return 0
+    if not args.report_only:
+        _check_demos_fit(cells, finished, envs, out)
     del envs  # the workers build their own; the scheduler needs them no more
     code = 0
     if not args.report_only:
@@ -209,6 +261,21 @@ def run(args: argparse.Namespace) -> int:
         print(markdown_table(rows), end="")
     print("wrote " + ", ".join(str(p) for p in written))
     return code
+
+
+def _check_demos_fit(cells, finished, envs, out: Path) -> None:
+    """Refuse a sweep whose demonstrations still to collect cannot fit on ``out``'s disk
+    (a lower bound per demonstration; see ``bpns.datasets.min_demo_bytes``)."""
+    from bpns.datasets import min_demo_bytes
+    from bpns.experiments.cells import DEMOS
+
+    todo = [c for c in cells if c.kind == DEMOS and c.key not in finished]
+    needed = sum(
+        (c.count or 0) * min_demo_bytes(envs[c.env], envs[c.env].task(0, c.seed, True))
+        for c in todo
+    )
+    count = sum(c.count or 0 for c in todo)
+    check_free_space(out, needed, "--out", f"{count} demonstrations")
 
 
 @contextlib.contextmanager

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bpns.cli.common import (
@@ -12,13 +11,14 @@ from bpns.cli.common import (
     file_env,
     nonnegative,
     nonnegative_float,
+    path_arg,
     positive,
     print_lines,
     progress,
     stage_reporter,
     tolerance_or_off,
 )
-from bpns.cli.paths import capped_to_cores, check_skills_dir
+from bpns.cli.paths import capped_to_cores, check_skills_dir, writing
 
 if TYPE_CHECKING:
     from bpns.learning.baselines import BaselinesConfig
@@ -27,8 +27,8 @@ HELP = "learn neuro-symbolic skills from demonstrations"
 
 
 def configure(p: argparse.ArgumentParser) -> None:
-    p.add_argument("demos", type=Path, help="demonstration .h5 file (from `bpns demos`)")
-    p.add_argument("--out", required=True, type=Path, help="skills directory to write")
+    p.add_argument("demos", type=path_arg, help="demonstration .h5 file (from `bpns demos`)")
+    p.add_argument("--out", required=True, type=path_arg, help="skills directory to write")
     p.add_argument("--limit", type=positive, help="learn from the first N demos only")
     p.add_argument("--seed", type=nonnegative, default=0, help="seed of all network training")
     p.add_argument(
@@ -154,17 +154,18 @@ def run(args: argparse.Namespace) -> int:
             },
         )
     try:
-        learned = learn_to_directory(
-            env,
-            args.demos,
-            args.out,
-            config,
-            args.limit,
-            threads,
-            progress,
-            stage_reporter(),
-            baselines=_baselines_config(args) if args.baselines else None,
-        )
+        with writing(args.out):
+            learned = learn_to_directory(
+                env,
+                args.demos,
+                args.out,
+                config,
+                args.limit,
+                threads,
+                progress,
+                stage_reporter(),
+                baselines=_baselines_config(args) if args.baselines else None,
+            )
     except (DatasetError, CannotLearnError) as err:
         raise UserError(str(err)) from None
     print_lines(learned)

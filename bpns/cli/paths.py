@@ -10,13 +10,16 @@ skills directory, a directory that is not one.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import shutil
 import stat
 import sys
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
+from bpns.atomic import storage_problem
 from bpns.cli.common import UserError
 
 SKILLS_INDEX = "skills.json"  # what marks a directory as a skills directory
@@ -36,20 +39,22 @@ def _inside(path: Path, directory: Path) -> bool:
         return False
 
 
-def _check_writable_place(path: Path, flag: str) -> None:
+def _check_writable_place(path: Path, flag: str, shown: Path | None = None) -> None:
     """The deepest existing ancestor of ``path`` must be a directory we can create
-    files in (parents that do not exist yet are created when writing)."""
+    files in (parents that do not exist yet are created when writing). Messages name
+    ``shown`` (default: ``path``)."""
+    shown = path if shown is None else shown
     ancestor = path.parent
     while not ancestor.exists() and ancestor != ancestor.parent:
         if ancestor.is_symlink():  # a dangling link
-            raise UserError(f"{flag} {path}: {ancestor} is a broken symbolic link")
+            raise UserError(f"{flag} {shown}: {ancestor} is a broken symbolic link")
         ancestor = ancestor.parent
     if not ancestor.is_dir():
-        raise UserError(f"{flag} {path}: {ancestor} is not a directory")
+        raise UserError(f"{flag} {shown}: {ancestor} is not a directory")
     try:
         fd, probe = tempfile.mkstemp(prefix=".bpns-write-check-", dir=ancestor)
     except OSError as err:
-        raise UserError(f"{flag} {path}: cannot write in {ancestor} ({err.strerror})") from None
+        raise UserError(f"{flag} {shown}: cannot write in {ancestor} ({err.strerror})") from None
     os.close(fd)
     os.unlink(probe)
 
@@ -102,7 +107,54 @@ def check_output_dir(path: Path, flag: str) -> None:
         raise UserError(f"{flag} {path}: is a broken symbolic link")
     if path.exists() and not path.is_dir():
         raise UserError(f"{flag} {path}: exists and is not a directory")
-    _check_writable_place(path / "x", flag)
+    _check_writable_place(path / "x", flag, shown=path)
+
+
+@contextlib.contextmanager
+def writing(path: Path | None) -> Iterator[None]:
+    """A full disk or read-only filesystem while writing ``path`` becomes one line
+    naming it (the write is atomic: nothing was replaced)."""
+    try:
+        yield
+    except OSError as err:
+        problem = storage_problem(err, path)
+        if problem is None:
+            raise
+        raise UserError(problem) from None
+
+
+def check_free_space(path: Path, needed: int, flag: str, what: str) -> None:
+    """Refuse before any work when the filesystem of ``path`` (a directory, or a file in
+    one; or their deepest existing ancestor) has fewer than ``needed`` bytes free."""
+    ancestor = path if path.is_dir() else path.parent
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    try:
+        free = shutil.disk_usage(ancestor).free
+    except OSError:
+        return
+    if needed > free:
+        raise UserError(
+            f"{flag} {path}: {what} need at least {_size(needed)}, and {ancestor} has "
+            f"{_size(free)} free"
+        )
+
+
+def check_demos_fit(env, num: int, seed: int, out: Path, flag: str) -> None:
+    """Refuse ``num`` demonstrations that cannot fit on ``out``'s disk, before collecting
+    (a lower bound per demonstration: see ``bpns.datasets.min_demo_bytes``)."""
+    from bpns.datasets import min_demo_bytes
+
+    needed = num * min_demo_bytes(env, env.task(0, seed, True))
+    check_free_space(out, needed, flag, f"{num} demonstrations")
+
+
+def _size(n: float) -> str:
+    for unit in ("bytes", "kB", "MB", "GB"):
+        if n < 1000:
+            return f"{n:.3g} {unit}"
+        n /= 1000
+    return f"{n:.3g} TB"
 
 
 def usable_cores() -> int:
@@ -121,12 +173,26 @@ def capped_to_cores(value: int, flag: str) -> int:
     return cores
 
 
+def check_not_inside(path: Path, flag: str, directory: Path | None, what: str) -> None:
+    """Refuse ``path`` inside ``directory``, an input directory (e.g. the skills read)."""
+    if directory is not None and directory.exists() and _inside(path, directory):
+        raise UserError(
+            f"{flag} {path}: is inside {what} {directory}, this command's input; write it elsewhere"
+        )
+
+
 def check_eval_outputs(
-    out: Path | None, video: Path | None, approaches: Sequence[str], overwrite: bool
+    out: Path | None,
+    video: Path | None,
+    approaches: Sequence[str],
+    overwrite: bool,
+    skills_dir: Path | None = None,
 ) -> None:
     """The files an evaluation writes: results.json, results.md and plans_<approach>.npz
-    in ``out``; ``video`` and the PNG of its last frame next to it."""
+    in ``out``; ``video`` and the PNG of its last frame next to it. None of them may be
+    inside ``skills_dir``, the skills it reads."""
     if out is not None:
+        check_not_inside(out, "--out", skills_dir, "the skills directory")
         check_output_dir(out, "--out")
         names = ["results.json", "results.md", *(f"plans_{a}.npz" for a in approaches)]
         names += [f"rollouts_{a}.h5" for a in approaches]
@@ -136,5 +202,6 @@ def check_eval_outputs(
         png = video.with_suffix(".png")
         if png == video:
             raise UserError(f"--video {video}: give an .mp4 name (a PNG is written next to it)")
-        check_output_file(video, "--video", overwrite)
-        check_output_file(png, "--video", overwrite)
+        for path in (video, png):
+            check_not_inside(path, "--video", skills_dir, "the skills directory")
+            check_output_file(path, "--video", overwrite)

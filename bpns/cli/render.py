@@ -5,22 +5,24 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from bpns.cli.common import UserError, file_env, nonnegative, positive
+from bpns.cli.common import UserError, file_env, nonnegative, path_arg, positive
 from bpns.cli.paths import check_output_file
 
 HELP = "render a demonstration or an eval rollout (rollouts_<approach>.h5) to mp4 (and PNG)"
 
 
 def configure(p: argparse.ArgumentParser) -> None:
-    p.add_argument("file", type=Path, help="demonstration .h5 file, or a rollouts file")
+    p.add_argument("file", type=path_arg, help="demonstration .h5 file, or a rollouts file")
     p.add_argument("--demo", type=nonnegative, default=0, help="index of the demo to render")
     p.add_argument(
         "--task",
         type=nonnegative,
         help="a rollouts file: the eval task whose rollout to render (solved or failed)",
     )
-    p.add_argument("--out", type=Path, help="output .mp4 (default: demo_<i>.mp4 / task_<i>.mp4)")
-    p.add_argument("--png", type=Path, help="also write a PNG snapshot of the last frame")
+    p.add_argument(
+        "--out", type=path_arg, help="output .mp4 (default: demo_<i>.mp4 / task_<i>.mp4)"
+    )
+    p.add_argument("--png", type=path_arg, help="also write a PNG snapshot of the last frame")
     p.add_argument(
         "--camera",
         help="a camera of the scene (overview, front, top; Doors: follow, closeup, ...) or "

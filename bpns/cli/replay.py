@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-from bpns.cli.common import UserError, file_env, positive, print_lines, progress
+from bpns.cli.common import UserError, file_env, path_arg, positive, print_lines, progress
 
 HELP = "re-simulate demonstrations (or an eval's rollouts) and report any divergence"
 
 
 def configure(p: argparse.ArgumentParser) -> None:
-    p.add_argument("file", type=Path, help="demonstration .h5 file, or a rollouts file")
+    p.add_argument("file", type=path_arg, help="demonstration .h5 file, or a rollouts file")
     p.add_argument("--env", help="environment (default: the one named in the file)")
     p.add_argument("--limit", type=positive, help="replay only the first N demos")
 

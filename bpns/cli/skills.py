@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-from bpns.cli.common import learned_in
+from bpns.cli.common import learned_in, path_arg
 
 HELP = "inspect learned skills (`bpns skills show DIR`)"
 
@@ -13,7 +12,7 @@ HELP = "inspect learned skills (`bpns skills show DIR`)"
 def configure(p: argparse.ArgumentParser) -> None:
     sub = p.add_subparsers(dest="skills_command", required=True, metavar="ACTION")
     show = sub.add_parser("show", help="print the learned operators, readably")
-    show.add_argument("directory", type=Path, help="skills directory (from `bpns learn`)")
+    show.add_argument("directory", type=path_arg, help="skills directory (from `bpns learn`)")
     show.add_argument("--env", help="environment (default: the one recorded in the skills)")
     show.add_argument("--pddl", action="store_true", help="print the PDDL domain instead")
 

@@ -29,6 +29,21 @@ from bpns.experiments.cells import DEMOS, EVAL, SKILLS, Cell
 
 FORMAT = "bpns-experiment-cell-1"
 
+#: what readers of a finished cell's result use, by kind (the scheduler, the report)
+RESULT_KEYS = {
+    DEMOS: ("num_demos", "solved_tasks"),
+    SKILLS: ("num_demos", "num_skills"),
+    EVAL: (
+        "num_tasks",
+        "num_solved",
+        "solved_percent",
+        "median_seconds",
+        "mean_seconds",
+        "mean_nodes_created",
+        "tasks",
+    ),
+}
+
 
 class CellStoreError(ValueError):
     """A stored cell that cannot be reused: unreadable, or made with other settings."""
@@ -60,6 +75,12 @@ class CellStore:
             ) from None
         if not isinstance(record, dict) or record.get("format") != FORMAT:
             raise CellStoreError(f"{path}: not a bpns experiment cell file")
+        missing = _missing_fields(record, cell.kind)
+        if missing:
+            raise CellStoreError(
+                f"{path}: incomplete cell file (no {', '.join(missing)}); delete it to "
+                "redo the cell"
+            )
         if record.get("settings") != cell.settings:
             raise CellStoreError(
                 f"{path} was computed with other settings than this sweep's "
@@ -98,6 +119,15 @@ class CellStore:
         with atomic_path(path) as tmp:
             tmp.write_text(json.dumps(record, indent=1, allow_nan=False) + "\n")
         return path
+
+
+def _missing_fields(record: dict[str, Any], kind: str) -> list[str]:
+    top = {"id": str, "settings": dict, "inputs": dict, "result": dict, "seconds": (int, float)}
+    missing = [repr(k) for k, t in top.items() if not isinstance(record.get(k), t)]
+    if not missing:
+        result = record["result"]
+        missing = [f"result {k!r}" for k in RESULT_KEYS.get(kind, ()) if k not in result]
+    return missing
 
 
 def _differences(stored: Any, wanted: dict[str, Any], prefix: str = "") -> str:

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from bpns.atomic import atomic_path
+from bpns.atomic import atomic_path, storage_problem
 from bpns.environment import Environment
 from bpns.experiments import approach_info
 from bpns.experiments.backends import Backend
@@ -94,6 +94,7 @@ def _run_locked(
     done = load_finished(cells, store)
     summary = SweepSummary(total=len(cells), reused=list(done))
     waiting = [c for c in cells if c.key not in done]
+    check_inputs_present(waiting, by_key, done, store)
     running: dict[int, Cell] = {}
     bar = _progress_bar(len(cells), len(done), show_progress)
     say = log or (lambda line: bar.write(line, file=sys.stdout))
@@ -114,13 +115,24 @@ def _run_locked(
             token, outcome = backend.next_finished()
             cell = running.pop(token)
             bar.update(1)
+            if outcome.storage_problem is not None:
+                raise CellStoreError(
+                    f"{cell.describe()}: {outcome.storage_problem}; the cells finished so "
+                    "far are stored"
+                )
             if outcome.result is None:
                 summary.failed[cell.key] = outcome.error or "unknown error"
                 last = (outcome.error or "").strip().splitlines()[-1:] or ["unknown error"]
                 say(f"FAILED {cell.describe()}: {last[0]}")
                 continue
             record = _record(cell, outcome, done)
-            store.save(record)
+            try:
+                store.save(record)
+            except OSError as err:
+                problem = storage_problem(err, store.record_path(cell.key))
+                if problem is None:
+                    raise
+                raise CellStoreError(f"{problem}; the cells finished before are stored") from None
             done[cell.key] = record
             summary.computed.append(cell.key)
             say(f"[{len(done)}/{len(cells)}] {describe_result(cell, record)}")
@@ -144,6 +156,21 @@ def load_finished(cells: Sequence[Cell], store: CellStore) -> dict[str, dict[str
                     "longer stored; delete it to recompute it"
                 )
     return done
+
+
+def check_inputs_present(
+    waiting: Sequence[Cell], cells: Mapping[str, Cell], done: Mapping[str, dict], store: CellStore
+) -> None:
+    """:class:`CellStoreError` if a finished cell that a cell still to run reads has lost
+    its artifact (deleted by hand): found before any work, not by a worker's traceback."""
+    for cell in waiting:
+        for dep in cell.deps:
+            if dep in done and not os.path.exists(store.artifact_path(cells[dep])):
+                raise CellStoreError(
+                    f"{store.artifact_path(cells[dep])}: the artifact of finished cell {dep} "
+                    f"is missing, and {cell.key} needs it; delete {store.record_path(dep)} "
+                    "(and the cells computed from it) to recompute it"
+                )
 
 
 def _job(

@@ -13,6 +13,7 @@ import traceback
 from dataclasses import dataclass
 from typing import Any
 
+from bpns.atomic import storage_problem
 from bpns.experiments.cells import DEMOS, EVAL, SKILLS, SWEEP_GNN_SEED, Cell
 
 
@@ -31,17 +32,22 @@ class CellOutcome:
     error: str | None  # the traceback if it did
     seconds: float
     host: str
+    # one line when it raised because the output filesystem refused a write (full disk,
+    # read-only): every further cell would fail alike, so the sweep stops
+    storage_problem: str | None = None
 
 
 def run_cell_safely(job: CellJob) -> CellOutcome:
     """Run ``job``; an exception becomes an outcome with its traceback (a failed cell
     must not take the sweep down: its dependents are skipped, the rest goes on)."""
     t0 = time.perf_counter()
+    problem = None
     try:
         result, error = run_cell(job), None
-    except Exception:  # noqa: BLE001  reported to the scheduler, which reports it
+    except Exception as err:  # noqa: BLE001  reported to the scheduler, which reports it
         result, error = None, traceback.format_exc()
-    return CellOutcome(result, error, time.perf_counter() - t0, platform.node())
+        problem = storage_problem(err, job.output)
+    return CellOutcome(result, error, time.perf_counter() - t0, platform.node(), problem)
 
 
 def run_cell(job: CellJob) -> dict[str, Any]:

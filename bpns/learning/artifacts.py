@@ -31,7 +31,12 @@ from typing import Any
 
 import numpy as np
 
-from bpns.atomic import recover_directory, replace_directory
+from bpns.atomic import (
+    recover_directory,
+    remove_stale_temporaries,
+    replace_directory,
+    temporary_prefix,
+)
 from bpns.learning import artifact_checks as checks
 from bpns.learning.config import LearningConfig, MLPConfig
 from bpns.learning.demo_checks import check_finite_arrays
@@ -71,7 +76,8 @@ def save_skills(
     if target.exists() and not overwrite:
         raise FileExistsError(f"{target} exists; pass overwrite=True to replace it")
     target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=target.parent))
+    remove_stale_temporaries(target)  # of a save that was killed
+    tmp = Path(tempfile.mkdtemp(prefix=temporary_prefix(target), dir=target.parent))
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes 0700; skills are shared like any directory

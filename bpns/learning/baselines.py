@@ -42,6 +42,9 @@ from bpns.learning.pipeline import LearnedSkills, learn_skills
 from bpns.structs import Demonstration, Predicate, Type
 
 NOSUBGOAL_DIR = "nosubgoal"
+#: the baselines' stage names (keys of ``LearnedBaselines.stage_seconds``, and the names
+#: approaches list in ``ApproachEntry.learned_stages``)
+STAGES = ("gnn_meta", "gnn_bc", "nosubgoal")
 
 
 @dataclass(frozen=True)
@@ -71,6 +74,15 @@ class BaselinesConfig:
             meta=None if self.meta is None else dataclasses.replace(self.meta, seed=seed),
             bc=None if self.bc is None else dataclasses.replace(self.bc, seed=seed),
             seed=seed,
+        )
+
+    def only(self, stages: Collection[str]) -> BaselinesConfig:
+        """These settings learning only the baselines named in ``stages`` (see STAGES)."""
+        return dataclasses.replace(
+            self,
+            meta=self.meta if "gnn_meta" in stages else None,
+            bc=self.bc if "gnn_bc" in stages else None,
+            nosubgoal=self.nosubgoal and "nosubgoal" in stages,
         )
 
     @staticmethod

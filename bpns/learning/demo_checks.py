@@ -13,6 +13,11 @@ import numpy as np
 
 from bpns.structs import Demonstration
 
+#: the largest magnitude accepted in an action or feature: far beyond any physical
+#: quantity in metres, radians or newtons, and far below where float32 training (whose
+#: losses square these) overflows; 1e300 is finite but would poison the networks
+MAX_MAGNITUDE = 1e9
+
 
 class DemonstrationError(ValueError):
     """Demonstrations that cannot be learned from (non-finite actions or features)."""
@@ -20,20 +25,39 @@ class DemonstrationError(ValueError):
 
 def check_demonstrations(demos: Sequence[Demonstration]) -> None:
     """Raise :class:`DemonstrationError` naming the first demo and step with a NaN/inf
-    action or feature."""
+    or absurdly large (> MAX_MAGNITUDE) action or feature."""
     for i, demo in enumerate(demos):
         actions = np.asarray(demo.actions, dtype=np.float64)
-        bad = np.argwhere(~np.isfinite(actions))
-        if bad.size:
+        step = _first_bad_row(actions)
+        if step is not None:
             raise DemonstrationError(
-                f"demonstration {i}: action at step {int(bad[0][0])} holds NaN or inf"
+                f"demonstration {i}: action at step {step} {_why(actions[step])}"
             )
-        for step, state in enumerate(demo.states):
-            for obj, vec in state.data.items():
-                if not np.all(np.isfinite(vec)):
-                    raise DemonstrationError(
-                        f"demonstration {i}: features of {obj.name} at step {step} hold NaN or inf"
-                    )
+        for obj in demo.states[0].data:
+            rows = np.stack([state.data[obj] for state in demo.states])
+            step = _first_bad_row(rows)
+            if step is not None:
+                raise DemonstrationError(
+                    f"demonstration {i}: features of {obj.name} at step {step} "
+                    + _why(rows[step]).replace("holds", "hold", 1)
+                )
+
+
+def _first_bad_row(rows: np.ndarray) -> int | None:
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.abs(rows) <= MAX_MAGNITUDE)  # NaN compares False
+    if not bad.any():
+        return None
+    return int(np.argwhere(bad)[0][0])
+
+
+def _why(row: np.ndarray) -> str:
+    if not np.all(np.isfinite(row)):
+        return "holds NaN or inf"
+    return (
+        f"holds {float(np.max(np.abs(row))):.3g}, beyond the {MAX_MAGNITUDE:.0e} a "
+        "demonstration can hold (float32 training would overflow)"
+    )
 
 
 # keys whose NaN encodes "None" in a saved skill (LearnedPolicy.to_arrays)
