@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 import os
 import stat
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 
 import h5py
@@ -46,17 +46,48 @@ def save_demonstrations(
     path: str | os.PathLike, env: Environment, demos: Iterable[Demonstration]
 ) -> int:
     """Write ``demos`` to ``path`` atomically; returns how many were written."""
+    return write_demonstrations(path, env, ((d, {}) for d in demos))
+
+
+def write_demonstrations(
+    path: str | os.PathLike,
+    env: Environment,
+    items: Iterable[tuple[Demonstration, Mapping[str, str | int]]],
+    attrs: Mapping[str, str | int] | None = None,
+) -> int:
+    """:func:`save_demonstrations` with extra attributes: ``attrs`` on the root and each
+    item's own on its demo group (rollouts files keep their plans there)."""
     n = 0
     with atomic_path(path, ".h5") as tmp:
         with h5py.File(tmp, "w") as f:
             f.attrs["env"] = env.name
             f.attrs["format"] = FORMAT
+            f.attrs.update(dict(attrs or {}))
             data = f.create_group("data")
-            for demo in demos:
-                _write_demo(data.create_group(f"demo_{n}"), env, demo)
+            for demo, extra in items:
+                g = data.create_group(f"demo_{n}")
+                _write_demo(g, env, demo)
+                g.attrs.update(dict(extra))
                 n += 1
             f.attrs["num_demos"] = n
     return n
+
+
+def read_attributes(path: str | os.PathLike) -> tuple[dict, list[dict]]:
+    """The root attributes and each demo's own (those besides the format's), as stored."""
+    own = {"world", "goal", "objects", "horizon", "num_samples"}
+    with _open(path) as f:
+        data = _data(f, path)
+        root = {k: _plain(v) for k, v in f.attrs.items()}
+        demos = [
+            {k: _plain(v) for k, v in data[name].attrs.items() if k not in own}
+            for name in _names(data, path)
+        ]
+    return root, demos
+
+
+def _plain(value: object) -> object:
+    return value.item() if isinstance(value, np.generic) else value
 
 
 def min_demo_bytes(env: Environment, task: Task) -> int:
@@ -73,7 +104,10 @@ def min_demo_bytes(env: Environment, task: Task) -> int:
 def _write_demo(g: h5py.Group, env: Environment, demo: Demonstration) -> None:
     first = demo.states[0]
     assert first.sim is not None, "demonstration states must carry simulator states"
-    g.create_dataset("actions", data=np.asarray(demo.actions, dtype=np.float64))
+    actions = np.asarray(demo.actions, dtype=np.float64)
+    if actions.size == 0:  # a rollout that never acted: still (0, action_dim)
+        actions = np.zeros((0, len(env.action_low)))
+    g.create_dataset("actions", data=actions)
     if demo.expert_actions is not None:  # noise-injected demos: what the expert commanded
         g.create_dataset("expert_actions", data=np.asarray(demo.expert_actions, np.float64))
     g.create_dataset("states", data=np.stack([s.sim.flat for s in demo.states]))

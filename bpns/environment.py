@@ -38,6 +38,8 @@ class Capabilities:
                        None: every skill is learned.
     demo_noise:        DART noise scale of the scripted demonstrations
                        (``bpns.demo_attempts.ActionNoise``); 0.0: plain demonstrations.
+    default_camera:    the camera videos use unless told (e.g. one that follows a mobile
+                       robot, which leaves a fixed camera's view).
     """
 
     planning_defaults: Mapping[str, object] = field(default_factory=dict)
@@ -45,6 +47,7 @@ class Capabilities:
     oracle_skills: Callable[[], Sequence[Skill]] | None = None
     given_skills: Callable[[], Sequence[GivenSkill]] | None = None
     demo_noise: float = 0.0
+    default_camera: str = "overview"
 
     def __post_init__(self) -> None:  # read-only: one declaration shared by every instance
         if not 0.0 <= self.demo_noise < float("inf"):
@@ -109,6 +112,10 @@ class Environment(Protocol):
     contact_settle_steps: int
     # Defaults and skills the environment offers beyond this protocol (all optional).
     capabilities: Capabilities
+    # Optional methods (``mj_envs.MujocoEnv`` provides both): ``perturbed(spec) ->
+    # Environment``, the same environment under a ``bpns.perturbations.Perturbation``
+    # (``bpns eval --perturb``), and ``observe(state) -> State``, what policies see of a
+    # state (e.g. noisy features).
 
     @property
     def goal_predicates(self) -> frozenset[Predicate]: ...

@@ -27,8 +27,10 @@ from bpns.abstraction import abstract
 from bpns.approaches import Approach, get_approach
 from bpns.approaches import NoOracleSkillsError as NoOracleSkillsError  # re-exported
 from bpns.environment import Environment
+from bpns.perturbations import NOMINAL, Perturbation, perturbed
 from bpns.planning.config import PlanningConfig
 from bpns.pools import make_pool
+from bpns.rollouts import Rollout
 from bpns.structs import Task
 
 
@@ -44,11 +46,13 @@ class EvalSpec:
     planner_seed: int = 0  # rng of sampling, per task: [planner_seed, task index]
     train_tasks: bool = False  # evaluate on the train distribution instead
     validate: bool = True
+    perturbation: Perturbation = NOMINAL  # the physics the tasks run under
 
 
 @dataclass(frozen=True, eq=False)
 class TaskOutcome:
-    """The result of solving one task (``actions`` is empty unless solved)."""
+    """The result of solving one task (``actions`` is empty unless solved; ``rollout`` is
+    what was executed, solved or not: see :mod:`bpns.rollouts`)."""
 
     index: int
     solved: bool
@@ -63,6 +67,7 @@ class TaskOutcome:
     skeleton: tuple[str, ...] = ()  # the abstract plan refined, one ground skill a step
     explanation: dict | None = None  # a failed task: what was tried and why it failed
     actions: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
+    rollout: Rollout | None = field(repr=False, default=None)
 
     @property
     def sim_steps_per_step(self) -> float:
@@ -72,7 +77,7 @@ class TaskOutcome:
 
     def to_json(self) -> dict[str, Any]:
         d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
-        del d["actions"]
+        del d["actions"], d["rollout"]
         return d
 
 
@@ -89,6 +94,7 @@ class EvalReport:
     num_demos: int | None = None
     learning_seconds: float | None = None
     train_tasks: bool = False  # the tasks came from the train distribution
+    perturbation: Perturbation = NOMINAL
 
     @property
     def num_tasks(self) -> int:
@@ -143,6 +149,7 @@ class EvalReport:
             "label": self.label,
             "task_seed": self.task_seed,
             "train_tasks": self.train_tasks,
+            "perturbation": dataclasses.asdict(self.perturbation),
             "num_demos": self.num_demos,
             "learning_seconds": self.learning_seconds,
             "planning": dataclasses.asdict(self.planning),
@@ -227,6 +234,7 @@ def solve_task(
         skeleton=result.skeleton if result.success else (),
         explanation=None if result.success else result.explanation,
         actions=result.actions,
+        rollout=result.rollout if result.rollout is not None else Rollout(result.actions),
     )
 
 
@@ -244,7 +252,7 @@ _WORKER: dict[str, Any] = {}
 def _init_worker(spec: EvalSpec) -> None:
     from bpns.registry import make_environment
 
-    env = make_environment(spec.env_name)
+    env = perturbed(make_environment(spec.env_name), spec.perturbation)
     _WORKER.update(spec=spec, env=env, approach=approach_for(spec, env))
 
 
@@ -296,6 +304,7 @@ def evaluate(
         num_demos=num_demos,
         learning_seconds=learning_seconds,
         train_tasks=spec.train_tasks,
+        perturbation=spec.perturbation,
     )
 
 

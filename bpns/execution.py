@@ -25,6 +25,7 @@ import numpy as np
 from bpns.abstraction import object_tuples
 from bpns.environment import Environment
 from bpns.failures import FailureReason
+from bpns.perturbations import observation_of
 from bpns.structs import GroundAtom, GroundOperator, Object, Skill, State, Task
 
 
@@ -113,7 +114,10 @@ def state_features(state: State) -> Features:
 class SkillExecutor:
     """Executes ground skills for one task. Holds what is constant across executions
     (bounds, the task's horizon, the contact atoms to watch, the deadline) and counts
-    every simulated step in ``sim_steps``."""
+    every simulated step in ``sim_steps``. ``last_actions`` are the actions of the latest
+    execution, also of a failed one (what a rollouts file shows of a failed step).
+    Policies see states through the environment's observation (``env.observe``: e.g.
+    noisy features); completion tests see the true state."""
 
     def __init__(
         self,
@@ -129,6 +133,9 @@ class SkillExecutor:
         self.horizon = task.horizon
         self.deadline = deadline
         self.sim_steps = 0
+        self.last_actions: list[np.ndarray] = []
+        self.last_subgoal: np.ndarray | None = None
+        self.observe = observation_of(env)
         # every ground contact-related atom over the task's objects (segmentation's set)
         self.contact_watch: list = []
         if config.end_on_contact_change:
@@ -172,7 +179,9 @@ class SkillExecutor:
         low, high = self.low, self.high
         deadline = self.deadline
         stuck_steps = self.config.stuck_steps
+        observe = self.observe
         actions: list[np.ndarray] = []
+        self.last_actions, self.last_subgoal = actions, subgoal
         states: list[State] = []
         feats = state_features(state)
         unchanged = 0
@@ -186,7 +195,7 @@ class SkillExecutor:
             if used_steps + t >= self.horizon:
                 return FailureReason.TASK_HORIZON
             try:
-                raw = policy(state, objects, subgoal)
+                raw = policy(observe(state), objects, subgoal)
             except Exception:
                 return FailureReason.POLICY_ERROR
             action = checked_action(raw, low, high)

@@ -50,3 +50,14 @@ MEANING: dict[FailureReason, str] = {
     FailureReason.TASK_HORIZON: "the task's step budget would be exceeded",
     FailureReason.NOGOOD: "refuted from memory: the same state already failed here",
 }
+
+# Reasons a sample fails before its policy executes a single step (a rollouts file shows
+# no actions of such a sample).
+NOT_EXECUTED: frozenset[FailureReason] = frozenset(
+    {
+        FailureReason.SAMPLER_ERROR,
+        FailureReason.SAMPLER_NONFINITE,
+        FailureReason.NOGOOD,
+        FailureReason.EXHAUSTED,
+    }
+)

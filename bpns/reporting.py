@@ -1,5 +1,6 @@
 """What an evaluation leaves behind: one summary line per approach, the results files
-(results.json, results.md, plans_<approach>.npz) and a video of a solved task."""
+(results.json, results.md, plans_<approach>.npz, rollouts_<approach>.h5) and a video of a
+task's rollout."""
 
 from __future__ import annotations
 
@@ -12,9 +13,12 @@ from bpns.atomic import atomic_path
 from bpns.environment import Environment
 from bpns.evaluation import EvalReport, TaskOutcome, save_plans
 from bpns.failures import MEANING
+from bpns.perturbations import Perturbation, perturbed
 from bpns.pools import make_pool
 from bpns.registry import make_environment
-from bpns.video import render_video
+from bpns.rollout_files import demonstration_of, rollouts_name, save_rollouts
+from bpns.rollouts import Rollout
+from bpns.video import render_rollout
 
 
 def solved_line(report: EvalReport) -> str:
@@ -28,9 +32,12 @@ def solved_line(report: EvalReport) -> str:
     )
 
 
-def write_results(out: Path, reports: Sequence[EvalReport], table: str) -> None:
+def write_results(
+    out: Path, reports: Sequence[EvalReport], table: str, env: Environment | None = None
+) -> None:
     """results.json (every report), results.md (``table``) and one plans file per
-    approach in ``out`` (created if missing), each written atomically."""
+    approach in ``out`` (created if missing), each written atomically; given ``env``,
+    also one rollouts file per approach (:mod:`bpns.rollout_files`)."""
     out.mkdir(parents=True, exist_ok=True)
     with atomic_path(out / "results.json") as tmp:
         tmp.write_text(json.dumps([r.to_json() for r in reports], indent=2, allow_nan=False) + "\n")
@@ -38,6 +45,8 @@ def write_results(out: Path, reports: Sequence[EvalReport], table: str) -> None:
         tmp.write_text(table)
     for r in reports:
         save_plans(out / f"plans_{r.approach}.npz", r)
+        if env is not None:
+            save_rollouts(out / rollouts_name(r.approach), env, r)
 
 
 @dataclass(frozen=True)
@@ -50,6 +59,14 @@ class SolvedVideo:
 
     def lines(self) -> list[str]:
         o = self.outcome
+        steps = o.rollout.steps if o.rollout is not None else ()
+        if not o.solved:
+            return [
+                f"wrote {self.video} ({self.frames} frames: {self.label} failing eval task "
+                f"{o.index}: {o.reason}) and {self.png}",
+                "  furthest attempt: "
+                + (", ".join(f"{s.label} {s.outcome}" for s in steps) or "(nothing executed)"),
+            ]
         return [
             f"wrote {self.video} ({self.frames} frames: {self.label} solving eval task "
             f"{o.index} in {len(o.actions)} steps) and {self.png}",
@@ -115,31 +132,61 @@ def longest_solved(report: EvalReport) -> TaskOutcome | None:
 
 
 def render_longest_solved(
-    env: Environment, report: EvalReport, video: Path, seed: int, train: bool
+    env: Environment,
+    report: EvalReport,
+    video: Path,
+    seed: int,
+    train: bool,
+    task: int | None = None,
+    camera: str | None = None,
 ) -> SolvedVideo | None:
-    """Re-simulate :func:`longest_solved` from its task's initial state and render it to
-    ``video`` with a PNG of its end; None when nothing was solved. Raises
-    ``bpns.video.VideoError`` when rendering fails."""
-    outcome = longest_solved(report)
-    if outcome is None:
-        return None
+    """Re-simulate :func:`longest_solved` (or the rollout of eval task ``task``, solved
+    or failed) from its task's initial state under the report's physics and render it to
+    ``video`` with captions and a PNG of its end; None when nothing was solved and no
+    task was named. ``camera`` defaults to the environment's. Raises
+    ``bpns.video.VideoError`` when rendering fails, ValueError for a task not evaluated."""
+    if task is None:
+        outcome = longest_solved(report)
+        if outcome is None:
+            return None
+    else:
+        outcome = next((o for o in report.outcomes if o.index == task), None)
+        if outcome is None:
+            raise ValueError(f"task {task} was not evaluated (tasks 0..{report.num_tasks - 1})")
     png = video.with_suffix(".png")
     # Rendered in a fresh worker: writing the mp4 forks ffmpeg, and a fork of a parent that
     # holds a thousand loaded demonstrations fails with ENOMEM (`bpns run` at 1000 demos).
     with make_pool(1) as pool:
         n = pool.submit(
-            _render_task, env.name, outcome.index, seed, train, outcome.actions, video, png
+            _render_task, env.name, report.perturbation, seed, train, outcome, camera, video, png
         ).result()
     return SolvedVideo(video, png, n, report.label, outcome)
 
 
 def _render_task(
-    env_name: str, index: int, seed: int, train: bool, actions, video: Path, png: Path
+    env_name: str,
+    physics: Perturbation,
+    seed: int,
+    train: bool,
+    outcome: TaskOutcome,
+    camera: str | None,
+    video: Path,
+    png: Path,
 ) -> int:
-    """Re-simulate ``actions`` from task ``index`` of the seeded stream and render them."""
-    env = make_environment(env_name)
-    task = env.task(index, seed, train)
-    states = [task.init]
-    for action in actions:
-        states.append(env.simulate(states[-1], action))
-    return render_video(env, states, video, "overview", 640, 480, png)
+    """Re-simulate ``outcome``'s rollout from its task of the seeded stream and render it."""
+    env = perturbed(make_environment(env_name), physics)
+    task = env.task(outcome.index, seed, train)
+    rollout = outcome.rollout if outcome.rollout is not None else Rollout(outcome.actions)
+    demo = demonstration_of(env, task, rollout.actions)
+    reason = "" if outcome.solved else str(outcome.reason)
+    return render_rollout(
+        env,
+        demo.states,
+        rollout.steps,
+        outcome.solved,
+        reason,
+        video,
+        camera,
+        png=png,
+        physics=physics.label(),
+    )

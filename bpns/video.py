@@ -4,15 +4,17 @@ from __future__ import annotations
 
 import os
 import shutil
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 
 import imageio.v2 as imageio
 import imageio_ffmpeg
 import numpy as np
+from PIL import Image, ImageDraw, ImageFont
 
 from bpns.atomic import atomic_path
 from bpns.environment import Environment
+from bpns.rollouts import PlanStep, outcome_caption, step_captions
 from bpns.structs import State
 
 
@@ -83,6 +85,11 @@ def write_png(path: str | os.PathLike, frame: np.ndarray) -> None:
         raise VideoError(f"cannot write {path}: {_reason(err, Path(path))}") from None
 
 
+def default_camera(env: Environment) -> str:
+    """The camera an environment's videos use unless told (its capabilities say)."""
+    return env.capabilities.default_camera
+
+
 def render_video(
     env: Environment,
     states: Sequence[State],
@@ -93,13 +100,21 @@ def render_video(
     png: str | os.PathLike | None = None,
     control_hz: float = 20.0,
     fps: int = 30,
+    captions: Sequence[str] | None = None,
+    final_caption: str | None = None,
 ) -> int:
     """Render ``states`` to a real-time mp4 (frames resampled from the control rate) and
-    optionally a PNG of the last frame; returns the number of frames written."""
+    optionally a PNG of the last frame; returns the number of frames written.
+
+    ``captions[i]`` is drawn into the frames of ``states[i]``; ``final_caption`` into the
+    last state's frame, held for ``HOLD_SECONDS`` at the end (and in the PNG)."""
     n_frames = max(1, int(len(states) * fps / control_hz))
-    picked = [states[min(len(states) - 1, int(i * control_hz / fps))] for i in range(n_frames)]
+    index = [min(len(states) - 1, int(i * control_hz / fps)) for i in range(n_frames)]
+    picked = [states[i] for i in index]
     try:
         frames = env.render(picked, camera, width, height)
+        if captions is not None or final_caption is not None:
+            frames = _captioned(frames, index, captions, final_caption, int(HOLD_SECONDS * fps))
         last = None
 
         def keep_last():
@@ -114,3 +129,91 @@ def render_video(
     except (RuntimeError, ValueError) as err:
         raise VideoError(str(err)) from None
     return n
+
+
+HOLD_SECONDS = 1.5
+
+
+def _captioned(
+    frames: Iterable[np.ndarray],
+    index: Sequence[int],
+    captions: Sequence[str] | None,
+    final_caption: str | None,
+    hold: int,
+) -> Iterator[np.ndarray]:
+    last = None
+    for frame, i in zip(frames, index, strict=True):
+        last = frame
+        text = captions[i] if captions is not None else ""
+        yield draw_caption(frame, text) if text else frame
+    if last is not None and final_caption is not None:
+        end = draw_caption(last, final_caption)
+        for _ in range(max(1, hold)):
+            yield end
+
+
+def draw_caption(frame: np.ndarray, text: str, at_top: bool = False) -> np.ndarray:
+    """``frame`` with ``text`` in white on a dark band along its bottom (or top; lines
+    wrap). Pillow's built-in font: nothing to install."""
+    h, w = frame.shape[:2]
+    size = max(10, min(22, w // 40))
+    font = ImageFont.load_default(size=size)
+    draw = ImageDraw.Draw(Image.fromarray(frame))
+    lines = _wrap(draw, font, text, w - 2 * size)
+    line_h = size + size // 3
+    top = size // 4 if at_top else h - line_h * len(lines) - size // 2
+    band = frame.copy()
+    rows = (
+        slice(0, top + line_h * len(lines) + size // 4)
+        if at_top
+        else slice(max(0, top - size // 4), h)
+    )
+    band[rows] //= 3  # darken behind the text
+    img = Image.fromarray(band)
+    draw = ImageDraw.Draw(img)
+    for k, line in enumerate(lines):
+        draw.text((size // 2, top + k * line_h), line, fill=(255, 255, 255), font=font)
+    return np.asarray(img)
+
+
+def _wrap(draw, font, text: str, width: int) -> list[str]:
+    lines: list[str] = []
+    for paragraph in text.split("\n"):
+        line = ""
+        for word in paragraph.split(" "):
+            trial = f"{line} {word}".strip()
+            if line and draw.textlength(trial, font=font) > width:
+                lines.append(line)
+                line = word
+            else:
+                line = trial
+        lines.append(line)
+    return lines
+
+
+def render_rollout(
+    env: Environment,
+    states: Sequence[State],
+    steps: Sequence[PlanStep],
+    solved: bool,
+    reason: str,
+    out: str | os.PathLike,
+    camera: str | None = None,
+    width: int = 640,
+    height: int = 480,
+    png: str | os.PathLike | None = None,
+    physics: str = "",
+) -> int:
+    """A rollout's video: each frame captioned with its skill and objects, the last held
+    with the outcome or the failure reason (``physics``: the perturbation, if any)."""
+    return render_video(
+        env,
+        states,
+        out,
+        camera or default_camera(env),
+        width,
+        height,
+        png,
+        captions=step_captions(steps, len(states)),
+        final_caption=outcome_caption(solved, reason, steps, len(states) - 1, physics),
+    )

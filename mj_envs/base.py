@@ -10,6 +10,7 @@ It implements :class:`bpns.environment.Environment`.
 from __future__ import annotations
 
 import abc
+import copy
 from collections import Counter
 from collections.abc import Hashable, Sequence
 from dataclasses import dataclass
@@ -18,8 +19,10 @@ import mujoco
 import numpy as np
 
 from bpns.environment import Capabilities
+from bpns.perturbations import NOMINAL, Perturbation
 from bpns.structs import GroundAtom, Object, Predicate, SimState, State, Task, Type
 from ik import ControllerConfig
+from mj_envs.perturbation import noise
 from mj_envs.render import render_states
 from mj_envs.world import POSE_SLICE, World
 
@@ -51,6 +54,8 @@ class MujocoEnv(abc.ABC):
     contact_settle_steps: int = 4
     # Defaults and skills beyond the required protocol (bpns.environment.Capabilities).
     capabilities: Capabilities = Capabilities()
+    # physics the tasks run under (``perturbed``); mj_envs.perturbation says what changes
+    perturbation: Perturbation = NOMINAL
 
     # -- what a domain declares -----------------------------------------------------
     @property
@@ -147,6 +152,52 @@ class MujocoEnv(abc.ABC):
             self.__dict__["_max_objects"] = cached
         return dict(cached)
 
+    # -- perturbed physics ------------------------------------------------------------
+    def perturbed(self, spec: Perturbation) -> MujocoEnv:
+        """This environment with ``spec``'s physics: every task's world (sampled or
+        loaded) gets the perturbed model, and ``simulate`` the noise and latency."""
+        env = copy.copy(self)
+        env.perturbation = spec
+        return env
+
+    def _world(self, xml: str) -> World:
+        p = self.perturbation
+        return World.from_xml(
+            xml, self.controller_config, perturbation=p, queue_size=p.latency * self.action_low.size
+        )
+
+    def _control_step(self, time: float) -> int:
+        return int(round(time / self.controller_config.control_dt))
+
+    def _applied_action(self, action: np.ndarray, world: World) -> np.ndarray:
+        """The action that reaches the robot: ``action`` with the perturbation's noise,
+        from the latency queue (which then takes ``action``)."""
+        p = self.perturbation
+        if p.action_noise:
+            low, high = self.action_low, self.action_high
+            step = self._control_step(world.data.time)
+            kick = noise(p, 0, world.key, step, action.size) * (p.action_noise * (high - low) / 2)
+            action = np.clip(action + kick, low, high)
+        if world.queue_size:
+            queue = world.data.userdata[world.queue].reshape(p.latency, action.size)
+            out = queue[0].copy()
+            world.data.userdata[world.queue] = np.concatenate([queue[1:].ravel(), action])
+            action = out
+        return action
+
+    def observe(self, state: State) -> State:
+        """What the skills' policies see of ``state``: its features plus the
+        perturbation's observation noise (the state itself when there is none)."""
+        p = self.perturbation
+        if not p.obs_noise or state.sim is None:
+            return state
+        world = state.sim.world
+        step = self._control_step(float(state.sim.flat[0]))  # mjSTATE_TIME comes first
+        sizes = [v.size for v in state.data.values()]
+        kicks = np.split(p.obs_noise * noise(p, 1, world.key, step, sum(sizes)), np.cumsum(sizes))
+        seen = {o: v + k for (o, v), k in zip(state.data.items(), kicks, strict=False)}
+        return State(seen, state.sim)
+
     # -- tasks ----------------------------------------------------------------------
     def train_tasks(self, n: int, seed: int) -> list[Task]:
         return self._tasks(n, seed, train=True)
@@ -165,7 +216,7 @@ class MujocoEnv(abc.ABC):
         return self.make_task(self.sample_layout(rng, train))
 
     def make_task(self, layout: TaskLayout) -> Task:
-        world = World.from_xml(layout.xml, self.controller_config)
+        world = self._world(layout.xml)
         m, d = world.model, world.data
         mujoco.mj_resetData(m, d)
         world.controller.reset(
@@ -194,6 +245,8 @@ class MujocoEnv(abc.ABC):
         world = state.sim.world
         assert isinstance(world, World)
         world.load(state.sim.flat)
+        if self.perturbation is not NOMINAL:
+            action = self._applied_action(action, world)
         self.before_control(action, world)
         dpos, drot, dgrip = self.command(action, world)
         world.controller.apply(world.data, POSE_SLICE, dpos, drot, dgrip, self.grip_enabled(state))
@@ -231,7 +284,7 @@ class MujocoEnv(abc.ABC):
         return world.xml
 
     def load_world(self, text: str) -> World:
-        return World.from_xml(text, self.controller_config)
+        return self._world(text)
 
     def state_from_flat(self, world: Hashable, flat: np.ndarray, like: State) -> State:
         assert isinstance(world, World)

@@ -6,6 +6,7 @@ model itself never changes for looks."""
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Callable, Iterator, Sequence
 
@@ -13,6 +14,7 @@ import mujoco
 import numpy as np
 
 from bpns.structs import State
+from bpns.video import draw_caption
 from mj_envs.gl import OSMESA_HINT, osmesa_available
 from mj_envs.robots.panda_looks import RenderModel, dressed_model
 from mj_envs.world import STATE_SPEC, World
@@ -37,6 +39,8 @@ def render_states(
 ) -> Iterator[np.ndarray]:
     """Yield one RGB frame per state; the renderer is always closed afterwards.
 
+    ``camera`` names one of the scene's cameras, or is ``ALL``: every camera of the scene
+    (in the model's order), tiled in a grid in one ``width`` x ``height`` frame.
     ``decorate(world)`` runs after each state is loaded, to set state-dependent looks.
     """
     if not states:
@@ -44,9 +48,14 @@ def render_states(
     _check_backend()
     world = states[0].sim.world
     assert isinstance(world, World)
-    if camera not in {world.model.camera(i).name for i in range(world.model.ncam)}:
-        names = sorted(world.model.camera(i).name for i in range(world.model.ncam))
-        raise ValueError(f"no camera {camera!r} in this scene; cameras: {', '.join(names)}")
+    names = camera_names(world)
+    if camera != ALL and camera not in names:
+        known = ", ".join(sorted(names))
+        raise ValueError(f"no camera {camera!r} in this scene; cameras: {known} (or {ALL})")
+    cameras = names if camera == ALL else (camera,)
+    cols = math.ceil(math.sqrt(len(cameras)))
+    rows = math.ceil(len(cameras) / cols)
+    tile_w, tile_h = width // cols, height // rows
     dressed = _render_model(world)
     model = dressed.model if dressed is not None else world.model
     data = mujoco.MjData(model) if dressed is not None else world.data
@@ -57,7 +66,7 @@ def render_states(
             f"{limit[0]} x {limit[1]} (its MJCF's <visual><global offwidth offheight>)"
         )
     try:
-        renderer = mujoco.Renderer(model, height=height, width=width)
+        renderer = mujoco.Renderer(model, height=tile_h, width=tile_w)
     except Exception as err:  # noqa: BLE001  (MuJoCo raises bare errors when GL is missing)
         raise RenderingUnavailable(
             f"could not start an OpenGL context ({err}); {OSMESA_HINT}"
@@ -74,10 +83,27 @@ def render_states(
                 model.geom_rgba[dressed.geom_ids] = world.model.geom_rgba
                 mujoco.mj_setState(model, data, state.sim.flat, STATE_SPEC)
                 mujoco.mj_forward(model, data)
-            renderer.update_scene(data, camera=camera)
-            yield renderer.render().copy()
+            if len(cameras) == 1:
+                renderer.update_scene(data, camera=camera)
+                yield renderer.render().copy()
+                continue
+            frame = np.zeros((height, width, 3), dtype=np.uint8)
+            for k, cam in enumerate(cameras):
+                renderer.update_scene(data, camera=cam)
+                r, c = divmod(k, cols)
+                tile = draw_caption(renderer.render(), cam, at_top=True)
+                frame[r * tile_h : (r + 1) * tile_h, c * tile_w : (c + 1) * tile_w] = tile
+            yield frame
     finally:
         renderer.close()
+
+
+ALL = "all"  # the camera name that tiles every camera of the scene
+
+
+def camera_names(world: World) -> tuple[str, ...]:
+    """The scene's cameras, in the model's order."""
+    return tuple(world.model.camera(i).name for i in range(world.model.ncam))
 
 
 def _render_model(world: World) -> RenderModel | None:

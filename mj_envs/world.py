@@ -17,8 +17,10 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from bpns.perturbations import NOMINAL, Perturbation
 from ik import ControllerConfig, EndEffectorController
 from mj_envs.mjcf_safety import check_mjcf
+from mj_envs.perturbation import apply_to_model
 from mj_envs.robots.panda import PANDA, Robot, ik_model
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -32,32 +34,68 @@ class MjcfError(ValueError):
 
 
 class World:
-    """Compiled scene + scratch MjData + controller bound to the scene's robot."""
+    """Compiled scene + scratch MjData + controller bound to the scene's robot.
 
-    def __init__(self, xml: str, controller_config: ControllerConfig, robot: Robot = PANDA) -> None:
+    ``perturbation`` edits the compiled model (:mod:`mj_envs.perturbation`); ``queue_size``
+    extra userdata (after the domain's) hold a latency queue. ``xml`` stays the nominal
+    task's MJCF, what datasets store."""
+
+    def __init__(
+        self,
+        xml: str,
+        controller_config: ControllerConfig,
+        robot: Robot = PANDA,
+        perturbation: Perturbation = NOMINAL,
+        queue_size: int = 0,
+    ) -> None:
         check_mjcf(xml)  # scenes also come from demo files: no <include>, no file paths
         try:
-            self.model = mujoco.MjModel.from_xml_string(xml)
+            if queue_size:
+                spec = mujoco.MjSpec.from_string(xml)
+                base_userdata = spec.nuserdata
+                spec.nuserdata = base_userdata + queue_size
+                self.model = spec.compile()
+            else:
+                self.model = mujoco.MjModel.from_xml_string(xml)
+                base_userdata = self.model.nuserdata
         except ValueError as err:
             raise MjcfError(f"the task's MJCF does not compile: {err}") from None
         self.xml = xml
         self.key = hashlib.sha1(xml.encode()).hexdigest()[:16]
         self.data = mujoco.MjData(self.model)
         self.robot = robot
+        self.perturbation = perturbation
+        self.queue = slice(base_userdata, base_userdata + queue_size)  # in userdata
         self.controller = EndEffectorController(ik_model(robot), controller_config)
         self.controller.bind(self.model, prefix=robot.prefix)
+        if perturbation.changes_model:
+            names = controller_config.arm_actuators
+            arm = [self.model.actuator(robot.prefix + a).id for a in names]
+            apply_to_model(self.model, self.data, robot, arm, perturbation)
         self.state_size = mujoco.mj_stateSize(self.model, STATE_SPEC)
         self.substeps = max(1, round(controller_config.control_dt / self.model.opt.timestep))
         self.cache: dict[str, Any] = {}  # the domain's per-scene lookups (ids, slices)
 
     @staticmethod
     def from_xml(
-        xml: str, controller_config: ControllerConfig | None = None, robot: Robot = PANDA
+        xml: str,
+        controller_config: ControllerConfig | None = None,
+        robot: Robot = PANDA,
+        perturbation: Perturbation = NOMINAL,
+        queue_size: int = 0,
     ) -> World:
-        return _cached_world(xml, controller_config or ControllerConfig(), robot)
+        config = controller_config or ControllerConfig()
+        return _cached_world(xml, config, robot, perturbation, queue_size)
 
     def __reduce__(self):
-        return (World.from_xml, (self.xml, self.controller.config, self.robot))
+        return (
+            World.from_xml,
+            (self.xml, self.controller.config, self.robot, self.perturbation, self.queue_size),
+        )
+
+    @property
+    def queue_size(self) -> int:
+        return self.queue.stop - self.queue.start
 
     def __repr__(self) -> str:
         return f"World({self.key})"
@@ -87,5 +125,11 @@ class World:
 
 
 @functools.lru_cache(maxsize=64)
-def _cached_world(xml: str, controller_config: ControllerConfig, robot: Robot) -> World:
-    return World(xml, controller_config, robot)
+def _cached_world(
+    xml: str,
+    controller_config: ControllerConfig,
+    robot: Robot,
+    perturbation: Perturbation,
+    queue_size: int,
+) -> World:
+    return World(xml, controller_config, robot, perturbation, queue_size)

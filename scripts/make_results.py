@@ -190,25 +190,46 @@ def assemble(out: Path) -> None:
         "",
     ]
     body = [found[n].read_text().rstrip() + "\n" for n in names]
-    atomic_write(out, "\n".join(preface) + "\n" + "\n".join(body + experiment_sections()))
+    sections = body + experiment_sections() + robustness_sections()
+    atomic_write(out, "\n".join(preface) + "\n" + "\n".join(sections))
 
 
 def experiment_sections() -> list[str]:
     """Every sweep report kept in docs/experiments/<name>/ (``bpns experiment`` writes
     ``results.md`` and figures into its --out; copy them there), one section each, with
     headings one level down and figure paths relative to docs/."""
+    out = _report_sections(sorted(EXPERIMENTS.glob("*/results.md")))
+    if out:
+        out.insert(0, "## Means and spread over seeds (`bpns experiment`)\n")
+        out.insert(1, experiment_summary())
+    return out
+
+
+def _report_sections(reports: list[Path]) -> list[str]:
+    """Each report's text with headings one level down and figure paths from docs/."""
     out = []
-    for report in sorted(EXPERIMENTS.glob("*/results.md")):
+    for report in reports:
+        where = report.parent.relative_to(ROOT / "docs").as_posix()
         lines = []
         for line in report.read_text().rstrip().splitlines():
             if line.startswith("#"):
                 line = "##" + line
-            line = line.replace("](", f"](experiments/{report.parent.name}/")
-            lines.append(line)
+            lines.append(line.replace("](", f"]({where}/"))
         out.append("\n".join(lines) + "\n")
+    return out
+
+
+def robustness_sections() -> list[str]:
+    """Every perturbation sweep kept in docs/experiments/robustness/<env>/ (``bpns
+    experiment --perturb-axis``), one section each, as :func:`experiment_sections`."""
+    out = _report_sections(sorted((EXPERIMENTS / "robustness").glob("*/results.md")))
     if out:
-        out.insert(0, "## Means and spread over seeds (`bpns experiment`)\n")
-        out.insert(1, experiment_summary())
+        out.insert(
+            0,
+            "## Robustness under perturbed physics (`bpns experiment --perturb-axis`)\n\n"
+            "The same learned skills and oracle skills evaluated under changed physics "
+            "(README: Perturbations); one small sweep per environment, one seed.\n",
+        )
     return out
 
 

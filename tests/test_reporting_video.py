@@ -28,7 +28,7 @@ def test_solved_task_video_is_rendered_outside_the_calling_process(
     def fail_here(*args, **kwargs):
         raise AssertionError("rendered in the calling process")
 
-    monkeypatch.setattr(reporting, "render_video", fail_here)  # the worker imports its own
+    monkeypatch.setattr(reporting, "render_rollout", fail_here)  # the worker imports its own
     made = render_longest_solved(cover_env, report, tmp_path / "solved.mp4", 7, False)
     if made is None:
         pytest.fail("nothing rendered")

@@ -27,6 +27,7 @@ import numpy as np
 from bpns.environment import Environment
 from bpns.failures import FailureReason
 from bpns.planning.config import PlanningConfig
+from bpns.rollouts import Rollout
 from bpns.structs import Task
 
 
@@ -57,6 +58,9 @@ class Solution:
     # why a failed attempt failed, JSON-ready (abstract plans tried and, per step,
     # samples that failed and why): written to results.json, shown by `bpns eval --explain`
     explanation: dict | None = field(default=None, repr=False)
+    # what was executed (bpns.rollouts): the plan when solved, else the attempt that got
+    # furthest; None when the approach does not say
+    rollout: Rollout | None = field(default=None, repr=False)
 
 
 def failure(reason: FailureReason, action_dim: int, **counts: int) -> Solution:

@@ -21,8 +21,9 @@ from bpns.approaches.base import (
 from bpns.environment import Environment
 from bpns.learning.artifacts import load_skills
 from bpns.learning.given import given_skills_of
-from bpns.planning.bilevel import PlanningStats, plan
+from bpns.planning.bilevel import PlanningStats, PlanResult, plan
 from bpns.planning.config import PlanningConfig
+from bpns.rollouts import REACHED, Rollout, rollout_of
 from bpns.structs import Skill, Task
 
 
@@ -52,7 +53,26 @@ class BilevelPlanning(Approach):
             sim_steps=s.sim_steps,
             details=result,
             explanation=None if result.success else _explanation(result.stats),
+            rollout=_rollout(result, np.asarray(self.env.action_low).size),
         )
+
+
+def _rollout(result: PlanResult, action_dim: int) -> Rollout | None:
+    """The plan executed (solved), else the refinement attempt that got furthest."""
+    if not result.success:
+        return result.furthest
+    if result.skeleton is None:
+        return None
+    ends = (*result.step_starts[1:], len(result.actions))
+    return rollout_of(
+        [
+            (op, subgoal, result.actions[start:end], REACHED)
+            for op, subgoal, start, end in zip(
+                result.skeleton.operators, result.subgoals, result.step_starts, ends, strict=True
+            )
+        ],
+        action_dim,
+    )
 
 
 def _explanation(stats: PlanningStats) -> dict:

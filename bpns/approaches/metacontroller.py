@@ -29,8 +29,9 @@ from bpns.execution import (
     completion_test,
     expected_after,
 )
-from bpns.failures import FailureReason
+from bpns.failures import NOT_EXECUTED, FailureReason
 from bpns.planning.config import PlanningConfig
+from bpns.rollouts import REACHED, rollout_of
 from bpns.structs import GroundAtom, Object, Skill, State, Task
 
 
@@ -83,10 +84,16 @@ class Metacontroller(Approach):
         skeleton: list[str] = []
         samples = 0
 
-        def failed(reason: FailureReason, step: str | None = None) -> Solution:
+        done: list = []  # (ground operator, subgoal, actions, outcome) per executed skill
+
+        def failed(
+            reason: FailureReason, step: str | None = None, attempt: tuple | None = None
+        ) -> Solution:
             out = failure(reason, self.action_dim, samples=samples, sim_steps=executor.sim_steps)
             executed = {"executed": list(skeleton), "failed_step": step}
-            return dataclasses.replace(out, explanation=executed)
+            tried = done if attempt is None else [*done, attempt]
+            rollout = rollout_of(tried, self.action_dim)
+            return dataclasses.replace(out, explanation=executed, rollout=rollout)
 
         try:
             while not task.goal_holds(atoms):
@@ -120,7 +127,15 @@ class Metacontroller(Approach):
                     if not isinstance(out, FailureReason):
                         break
                 if isinstance(out, FailureReason):
-                    return failed(out, str(op))
+                    ran = out not in NOT_EXECUTED
+                    attempt = (
+                        op,
+                        executor.last_subgoal if ran else None,
+                        executor.last_actions if ran else [],
+                        str(out),
+                    )
+                    return failed(out, str(op), attempt)
+                done.append((op, subgoal, out.actions, REACHED))
                 history.append(choice)
                 skeleton.append(str(op))
                 actions.extend(out.actions)
@@ -134,4 +149,5 @@ class Metacontroller(Approach):
             skeleton=tuple(skeleton),
             samples=samples,
             sim_steps=executor.sim_steps,
+            rollout=rollout_of(done, self.action_dim),
         )

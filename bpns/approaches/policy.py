@@ -10,6 +10,7 @@ attempt fails when the task's horizon is used up or the time runs out.
 from __future__ import annotations
 
 import abc
+import dataclasses
 import time
 
 import numpy as np
@@ -19,6 +20,8 @@ from bpns.approaches.base import Approach, Solution, failure
 from bpns.environment import Environment
 from bpns.execution import checked_action
 from bpns.failures import FailureReason
+from bpns.perturbations import observation_of
+from bpns.rollouts import Rollout
 from bpns.structs import State, Task
 
 
@@ -42,16 +45,18 @@ class ClosedLoopPolicy(Approach):
         actions: list[np.ndarray] = []
 
         def failed(reason: FailureReason) -> Solution:
-            return failure(reason, self.low.size, sim_steps=len(actions))
+            out = failure(reason, self.low.size, sim_steps=len(actions))
+            return dataclasses.replace(out, rollout=_rollout(actions, self.low.size))
 
         goal_predicates = self.env.goal_predicates
+        observe = observation_of(self.env)  # what the policy sees (e.g. noisy features)
         while not task.goal_holds(abstract(state, goal_predicates)):
             if len(actions) >= task.horizon:
                 return failed(FailureReason.TASK_HORIZON)
             if time.monotonic() >= deadline:
                 return failed(FailureReason.TIMEOUT)
             try:
-                raw = self.act(task, state)
+                raw = self.act(task, observe(state))
             except Exception:
                 return failed(FailureReason.POLICY_ERROR)
             action = checked_action(raw, self.low, self.high)
@@ -63,4 +68,10 @@ class ClosedLoopPolicy(Approach):
             success=True,
             actions=np.array(actions, dtype=np.float64).reshape(len(actions), self.low.size),
             sim_steps=len(actions),
+            rollout=_rollout(actions, self.low.size),
         )
+
+
+def _rollout(actions: list[np.ndarray], action_dim: int) -> Rollout:
+    """Every action taken; a per-step policy executes no skills."""
+    return Rollout(np.array(actions, dtype=np.float64).reshape(len(actions), action_dim))

@@ -152,7 +152,16 @@ def print_lines(record) -> None:
         print(line, flush=True)
 
 
-def report_evaluation(env, reports, out: Path | None, video: Path | None, seed: int, train: bool):
+def report_evaluation(
+    env,
+    reports,
+    out: Path | None,
+    video: Path | None,
+    seed: int,
+    train: bool,
+    task: int | None = None,
+    camera: str | None = None,
+):
     """Print the table, write the results files to ``out`` and render a solved task to
     ``video`` (each when given): the end of ``bpns eval`` and of ``bpns run``."""
     from bpns.evaluation import markdown_table
@@ -162,15 +171,17 @@ def report_evaluation(env, reports, out: Path | None, video: Path | None, seed: 
     table = markdown_table(reports)
     print(table, end="")
     if out is not None:
-        write_results(out, reports, table)
-        print(f"wrote {out / 'results.json'} and {out / 'results.md'}")
+        write_results(out, reports, table, env)
+        print(f"wrote {out / 'results.json'}, {out / 'results.md'} and rollouts_<approach>.h5")
     if video is not None:
         # the first approach named that solved anything (e.g. the oracle, when skills
         # learned from a handful of demos solve nothing)
         solving = next((r for r in reports if r.num_solved), reports[0])
+        if task is not None:  # the named task, solved or not, of the first approach
+            solving = reports[0]
         try:
-            rendered = render_longest_solved(env, solving, video, seed, train)
-        except VideoError as err:
+            rendered = render_longest_solved(env, solving, video, seed, train, task, camera)
+        except (VideoError, ValueError) as err:
             raise UserError(str(err)) from None
         if rendered is None:
             print(f"no {solving.label} task was solved: no video", file=sys.stderr)
@@ -191,6 +202,7 @@ def evaluate_approaches(
     train: bool,
     validate: bool,
     workers: int,
+    perturbation=None,
 ):
     """Evaluate each named approach in turn, printing its summary line as it finishes;
     the reports in the order named (the middle of ``bpns eval`` and of ``bpns run``)."""
@@ -198,6 +210,7 @@ def evaluate_approaches(
     from bpns.evaluation import EvalSpec, evaluate
     from bpns.learning.artifacts import ArtifactError
     from bpns.learning.baselines import saved_baseline_seconds
+    from bpns.perturbations import NOMINAL
     from bpns.reporting import solved_line
 
     stats = learned.stats if learned is not None else None
@@ -224,6 +237,7 @@ def evaluate_approaches(
             planner_seed=planner_seed,
             train_tasks=train,
             validate=validate,
+            perturbation=perturbation or NOMINAL,
         )
         learning_seconds = None
         if learned_approach and stats is not None and skills_dir is not None:

@@ -63,8 +63,28 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--video",
         type=path_arg,
-        help="render a solved task to this .mp4: the one with the longest plan, which shows "
-        "the most skills",
+        help="render a task to this .mp4 with captions (skill and objects; the outcome at "
+        "the end): --task, or the solved task with the longest plan, which shows the most "
+        "skills",
+    )
+    p.add_argument(
+        "--task",
+        type=nonnegative,
+        help="with --video: render this eval task of the first approach, solved or failed",
+    )
+    p.add_argument(
+        "--camera",
+        help="with --video: a camera of the scene, or 'all' (every camera tiled); "
+        "default: the environment's (Doors: follow)",
+    )
+    p.add_argument(
+        "--perturb",
+        nargs="+",
+        metavar="NAME=VALUE",
+        default=[],
+        help="evaluate under perturbed physics: mass_scale, friction_scale, gain_scale (arm "
+        "kp), action_noise (std, fraction of the action range), obs_noise (std on the "
+        "policies' features), latency (control steps), seed (of the noises); see README",
     )
     p.add_argument("--no-validate", action="store_true", help="skip re-simulating plans")
     p.add_argument(
@@ -80,8 +100,17 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bpns.approaches import SkillSource
+    from bpns.perturbations import PerturbationError, parse_perturbation, perturbed
     from bpns.planning.config import planning_config_for
 
+    try:
+        perturbation = parse_perturbation(args.perturb)
+    except PerturbationError as err:
+        raise UserError(f"--perturb: {err}") from None
+    if args.video is None and (args.task is not None or args.camera is not None):
+        raise UserError("--task and --camera choose what --video renders: pass --video too")
+    if args.task is not None and args.task >= args.tasks:
+        raise UserError(f"--task {args.task}: only tasks 0..{args.tasks - 1} are evaluated")
     names = list(dict.fromkeys(args.approach))
     approaches = [approach_by_name(a) for a in names]
     check_eval_outputs(args.out, args.video, names, args.overwrite, args.skills)
@@ -97,6 +126,10 @@ def run(args: argparse.Namespace) -> int:
         env, _ = learned_in(args.skills)  # the environment the skills record
     else:
         env = env_by_name(args.env)
+    try:
+        perturbed(env, perturbation)  # an environment without perturbations says so now
+    except PerturbationError as err:
+        raise UserError(f"--perturb: {err}") from None
     if (
         any(a.skills is SkillSource.ORACLE for a in approaches)
         and not env.capabilities.has_oracle_skills
@@ -126,9 +159,12 @@ def run(args: argparse.Namespace) -> int:
         train=args.train,
         validate=not args.no_validate,
         workers=workers,
+        perturbation=perturbation,
     )
     with writing(args.out or args.video):
-        report_evaluation(env, reports, args.out, args.video, args.seed, args.train)
+        report_evaluation(
+            env, reports, args.out, args.video, args.seed, args.train, args.task, args.camera
+        )
     if args.explain:
         from bpns.reporting import explain_lines
 

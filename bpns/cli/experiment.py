@@ -67,6 +67,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-n", "--tasks", type=_count, help="eval tasks per seed (overrides)")
     parser.add_argument("--timeout", type=_seconds, help="planning seconds per task (overrides)")
     parser.add_argument(
+        "--perturb-axis",
+        metavar="NAME=V1,V2,...",
+        help="evaluate every eval cell under each level of one perturbation (as `bpns eval "
+        "--perturb`), e.g. friction_scale=1,0.7,0.5; the report draws success vs level",
+    )
+    parser.add_argument(
         "--workers",
         type=_count,
         default=1,
@@ -89,8 +95,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def sweep_config(args: argparse.Namespace) -> SweepConfig:
+    from bpns.perturbations import PerturbationError, parse_axis
     from bpns.registry import environment_names
 
+    axis = None
+    if args.perturb_axis:
+        try:
+            axis = parse_axis(args.perturb_axis)
+        except PerturbationError as err:
+            raise UserError(f"--perturb-axis: {err}") from None
     try:
         config = PRESETS[args.preset].with_overrides(
             envs=args.env,
@@ -99,6 +112,7 @@ def sweep_config(args: argparse.Namespace) -> SweepConfig:
             approaches=args.approach,
             eval_tasks=args.tasks,
             timeout=args.timeout,
+            perturb_axis=axis,
         )
     except SweepConfigError as err:
         raise UserError(str(err)) from None
@@ -151,6 +165,9 @@ def command_line(config: SweepConfig, out: Path, args: argparse.Namespace) -> st
     argv += ["--env", *config.envs, "--demos", *map(str, config.demo_counts)]
     argv += ["--seeds", *map(str, config.seeds), "--approach", *config.approaches]
     argv += ["--tasks", str(config.eval_tasks), "--timeout", f"{config.timeout:g}"]
+    if config.perturb_axis is not None:
+        name, levels = config.perturb_axis
+        argv += ["--perturb-axis", f"{name}={','.join(format(v, 'g') for v in levels)}"]
     argv += ["--workers", str(args.workers)]
     if args.backend != "pool":
         argv += ["--backend", args.backend]

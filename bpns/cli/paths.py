@@ -195,6 +195,7 @@ def check_eval_outputs(
         check_not_inside(out, "--out", skills_dir, "the skills directory")
         check_output_dir(out, "--out")
         names = ["results.json", "results.md", *(f"plans_{a}.npz" for a in approaches)]
+        names += [f"rollouts_{a}.h5" for a in approaches]
         for name in names:
             check_output_file(out / name, "--out", overwrite)
     if video is not None:

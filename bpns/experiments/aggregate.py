@@ -93,6 +93,8 @@ class Row:
     approach: str
     demos: int | None  # None: the approach learns nothing
     seeds: tuple[SeedResult, ...]
+    level: float | None = None  # the perturbation axis' value (None: no axis)
+    axis: str | None = None  # the perturbation axis' name
 
     @property
     def label(self) -> str:
@@ -128,6 +130,7 @@ class Row:
             "approach": self.approach,
             "label": self.label,
             "demos": self.demos,
+            **({} if self.axis is None else {"perturbation": {self.axis: self.level}}),
             "seeds": [s.seed for s in self.seeds],
             "eval_tasks": [s.num_tasks for s in self.seeds],
             "solved_percent": self.solved_percent.to_json(),
@@ -140,25 +143,31 @@ class Row:
 
 
 def aggregate(eval_records: Iterable[dict[str, Any]]) -> list[Row]:
-    """One row per (env, approach, demo count), in the order first seen for env and
-    approach and by increasing demo count; seeds sorted."""
-    groups: dict[tuple[str, str, int | None], list[SeedResult]] = {}
+    """One row per (env, approach, demo count, perturbation level), in the order first
+    seen for env and approach, then by increasing demo count and level; seeds sorted."""
+    groups: dict[tuple[str, str, int | None, float | None], list[SeedResult]] = {}
+    axes: dict[tuple, str | None] = {}
     env_order: dict[str, int] = {}
     approach_order: dict[str, int] = {}
     for record in eval_records:
         s = record["settings"]
         env_order.setdefault(s["env"], len(env_order))
         approach_order.setdefault(s["approach"], len(approach_order))
-        key = (s["env"], s["approach"], s["demo_count"])
+        axis = s.get("perturb_axis")
+        level = None if axis is None else s["perturbation"][axis]
+        key = (s["env"], s["approach"], s["demo_count"], level)
+        axes[key] = axis
         groups.setdefault(key, []).append(SeedResult.from_record(record))
     keys = sorted(
         groups,
-        key=lambda k: (env_order[k[0]], approach_order[k[1]], -1 if k[2] is None else k[2]),
+        key=lambda k: (
+            env_order[k[0]],
+            approach_order[k[1]],
+            -1 if k[2] is None else k[2],
+            0.0 if k[3] is None else k[3],
+        ),
     )
-    return [
-        Row(env, approach, demos, tuple(sorted(groups[(env, approach, demos)], key=_seed)))
-        for env, approach, demos in keys
-    ]
+    return [Row(k[0], k[1], k[2], tuple(sorted(groups[k], key=_seed)), k[3], axes[k]) for k in keys]
 
 
 def _seed(result: SeedResult) -> int:
@@ -173,11 +182,19 @@ TABLE_HEADER = (
 
 
 def markdown_table(rows: Sequence[Row]) -> str:
-    """Mean ± std over seeds of each row's per-seed values."""
-    lines = [TABLE_HEADER]
+    """Mean ± std over seeds of each row's per-seed values (a perturbation axis adds a
+    column after Demos)."""
+    axis = next((r.axis for r in rows if r.axis is not None), None)
+    header = TABLE_HEADER
+    if axis is not None:
+        head, rule = TABLE_HEADER.split("\n")
+        header = head.replace("| Demos |", f"| Demos | {axis} |") + "\n"
+        header += rule.replace("|---:|", "|---:|---:|", 1)
+    lines = [header]
     for row in rows:
+        level = "" if axis is None else f"| {'–' if row.level is None else format(row.level, 'g')} "
         lines.append(
-            f"| {row.env} | {row.label} | {'–' if row.demos is None else row.demos} "
+            f"| {row.env} | {row.label} | {'–' if row.demos is None else row.demos} {level}"
             f"| {len(row.seeds)} | {row.solved_percent.format('.1f')} "
             f"| {row.median_seconds.format('.2f')} | {row.mean_seconds.format('.2f')} "
             f"| {row.nodes_created.format('.1f')} | {row.sim_steps_per_step.format('.1f')} "

@@ -22,6 +22,7 @@ from bpns.environment import Environment
 from bpns.experiments import approach_info
 from bpns.experiments.presets import SweepConfig
 from bpns.learning.config import LearningConfig, learning_config_for
+from bpns.perturbations import Perturbation
 from bpns.planning.config import PlanningConfig, planning_config_for
 
 DEMOS, SKILLS, EVAL = "demos", "skills", "eval"
@@ -49,13 +50,18 @@ class Cell:
     planning: PlanningConfig | None = None  # eval cells
     eval_tasks: int | None = None  # eval cells
     demo_noise: float = 0.0  # demos cells: DART noise scale (bpns.demo_attempts)
+    perturbation: Perturbation | None = None  # eval cells of a perturbation axis
+    perturb_axis: str | None = None  # the axis' perturbation name
 
     @property
     def key(self) -> str:
         """Unique in a sweep, usable as a relative file path (``kind/name``)."""
         count = "" if self.count is None else f"-n{self.count}"
         if self.kind == EVAL:
-            return f"{EVAL}/{self.env}-{self.approach}{count}-seed{self.seed}"
+            level = ""
+            if self.perturbation is not None and self.perturb_axis is not None:
+                level = f"-{self.perturb_axis}{getattr(self.perturbation, self.perturb_axis):g}"
+            return f"{EVAL}/{self.env}-{self.approach}{count}{level}-seed{self.seed}"
         if self.kind == SKILLS:
             return f"{SKILLS}/{self.env}{count}-seed{self.seed}"
         return f"{DEMOS}/{self.env}-seed{self.seed}"
@@ -82,6 +88,9 @@ class Cell:
                 planner_seed=self.seed,
                 planning=dataclasses.asdict(self.planning),  # type: ignore[arg-type]
             )
+            if self.perturbation is not None:  # (absent: cells stored before keep matching)
+                s["perturbation"] = dataclasses.asdict(self.perturbation)
+                s["perturb_axis"] = self.perturb_axis
         return json.loads(json.dumps(s))
 
     def describe(self) -> str:
@@ -92,6 +101,8 @@ class Cell:
             parts.append(f"{self.count} tasks")
         elif self.count is not None:
             parts.append(f"{self.count} demos")
+        if self.perturbation is not None and self.perturb_axis is not None:
+            parts.append(f"{self.perturb_axis}={getattr(self.perturbation, self.perturb_axis):g}")
         parts.append(f"seed {self.seed}")
         return " ".join(parts)
 
@@ -115,7 +126,7 @@ def plan_cells(config: SweepConfig, envs: Mapping[str, Environment]) -> list[Cel
                     continue
                 if not approach_info.available_on(approach, env):
                     continue
-                evals.append(_eval_cell(name, seed, None, approach, base, config, ()))
+                evals += _eval_cells(name, seed, None, approach, base, config, ())
             for count in config.demo_counts:
                 skill_cell = Cell(
                     SKILLS,
@@ -130,15 +141,14 @@ def plan_cells(config: SweepConfig, envs: Mapping[str, Environment]) -> list[Cel
                     skills.append(skill_cell)
                 for approach in config.approaches:
                     if approach_info.uses_learned_skills(approach):
-                        evals.append(
-                            _eval_cell(name, seed, count, approach, base, config, (skill_cell.key,))
-                        )
+                        deps = (skill_cell.key,)
+                        evals += _eval_cells(name, seed, count, approach, base, config, deps)
     if not skills:  # nothing learns: no demonstrations needed
         demos = []
     return demos + skills + evals
 
 
-def _eval_cell(
+def _eval_cells(
     env: str,
     seed: int,
     count: int | None,
@@ -146,17 +156,24 @@ def _eval_cell(
     base: PlanningConfig,
     config: SweepConfig,
     deps: tuple[str, ...],
-) -> Cell:
-    return Cell(
-        EVAL,
-        env,
-        seed,
-        count,
-        approach=approach,
-        deps=deps,
-        planning=approach_info.planning_config(approach, base),
-        eval_tasks=config.eval_tasks,
-    )
+) -> list[Cell]:
+    """One eval cell per level of the sweep's perturbation axis (one without an axis)."""
+    axis = None if config.perturb_axis is None else config.perturb_axis[0]
+    return [
+        Cell(
+            EVAL,
+            env,
+            seed,
+            count,
+            approach=approach,
+            deps=deps,
+            planning=approach_info.planning_config(approach, base),
+            eval_tasks=config.eval_tasks,
+            perturbation=physics,
+            perturb_axis=axis if physics is not None else None,
+        )
+        for physics in config.levels()
+    ]
 
 
 def skipped_approaches(config: SweepConfig, envs: Mapping[str, Environment]) -> list[str]:

@@ -5,6 +5,8 @@ display, no pyplot state) and written atomically as PNG and SVG.
   per learning approach with ± std error bars over seeds; approaches that learn nothing
   are a horizontal line with a ± std band. Approaches are drawn side by side at each
   count (a small offset on the log axis) so that equal values stay visible.
+- success vs a perturbation (a sweep with ``--perturb-axis``): per environment, solved
+  at each level of the axis, one line per approach.
 - success vs planning time: per environment, the percentage of eval tasks solved within
   t seconds, mean over seeds with a ± std band; learning approaches at their largest
   demo count.
@@ -21,6 +23,7 @@ from matplotlib.figure import Figure
 
 from bpns.atomic import atomic_path
 from bpns.experiments.aggregate import Row
+from bpns.perturbations import AXIS_LABELS
 
 FORMATS = ("png", "svg")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
@@ -108,6 +111,45 @@ def success_vs_time(rows: Sequence[Row], timeout: float) -> Figure:
         ax.set_ylim(-3, 103)
         ax.set_xlabel("planning time t (s)")
         ax.set_ylabel("eval tasks solved within t (%)")
+        ax.set_title(env)
+        ax.grid(alpha=0.3)
+    _legend_below(fig, axes)
+    return fig
+
+
+def success_vs_perturbation(rows: Sequence[Row]) -> Figure:
+    """Robustness: per environment, eval tasks solved (mean ± std over seeds) at each
+    level of the sweep's perturbation axis, one line per approach (and demo count)."""
+    envs = list(dict.fromkeys(r.env for r in rows))
+    axis = next(r.axis for r in rows if r.axis is not None)
+    colours = _colours(rows)
+    fig, axes = _panels(len(envs), f"Success vs {axis} (mean ± std over seeds)")
+    for ax, env in zip(axes, envs, strict=True):
+        mine = [r for r in rows if r.env == env and r.level is not None]
+        lines = list(dict.fromkeys((r.approach, r.demos) for r in mine))
+        levels = sorted({r.level for r in mine})  # type: ignore[type-var]
+        span = (max(levels) - min(levels)) or 1.0
+        for i, (approach, demos) in enumerate(lines):
+            line = sorted(
+                (r for r in mine if (r.approach, r.demos) == (approach, demos)),
+                key=lambda r: r.level,  # type: ignore[arg-type, return-value]
+            )
+            stats = [r.solved_percent for r in line]
+            dodge = 0.012 * span * (i - (len(lines) - 1) / 2)  # equal values stay visible
+            label = line[0].label + ("" if demos is None else f" ({demos} demos)")
+            ax.errorbar(
+                [r.level + dodge for r in line],  # type: ignore[operator]
+                [s.mean for s in stats],
+                yerr=[s.std for s in stats],
+                color=colours[approach],
+                marker=MARKERS[i % len(MARKERS)],
+                capsize=4,
+                label=f"{label} ({len(line[0].seeds)} seeds)",
+            )
+        ax.set_xticks(levels, [f"{v:g}" for v in levels])
+        ax.set_ylim(-3, 103)
+        ax.set_xlabel(AXIS_LABELS.get(axis, axis))
+        ax.set_ylabel("eval tasks solved (%)")
         ax.set_title(env)
         ax.grid(alpha=0.3)
     _legend_below(fig, axes)

@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass
 
 from bpns.experiments.approach_info import approach_names
+from bpns.perturbations import Perturbation, PerturbationError
 from bpns.registry import environment_names
 
 
@@ -33,6 +34,8 @@ class SweepConfig:
     approaches: tuple[str, ...]
     eval_tasks: int
     timeout: float  # seconds of planning per eval task
+    # (perturbation name, levels): every eval cell once per level (bpns.perturbations)
+    perturb_axis: tuple[str, tuple[float, ...]] | None = None
 
     def __post_init__(self) -> None:
         for field in ("envs", "demo_counts", "seeds", "approaches"):
@@ -49,6 +52,22 @@ class SweepConfig:
             raise SweepConfigError(f"eval_tasks must be >= 1, got {self.eval_tasks}")
         if not (self.timeout > 0 and math.isfinite(self.timeout)):
             raise SweepConfigError(f"timeout must be a number of seconds > 0, got {self.timeout}")
+        if self.perturb_axis is not None:
+            name, levels = self.perturb_axis
+            try:
+                for level in levels:
+                    Perturbation(**{name: level})
+            except (TypeError, PerturbationError) as err:
+                raise SweepConfigError(f"perturbation axis {name}: {err}") from None
+            if not levels or len(set(levels)) != len(levels):
+                raise SweepConfigError(f"perturbation axis {name}: empty or repeated levels")
+
+    def levels(self) -> list[Perturbation | None]:
+        """The physics of each eval cell: one per level of the axis (None: no axis)."""
+        if self.perturb_axis is None:
+            return [None]
+        name, levels = self.perturb_axis
+        return [Perturbation(**{name: level}) for level in levels]
 
     @property
     def max_demos(self) -> int:
@@ -67,7 +86,10 @@ class SweepConfig:
         return dataclasses.replace(self, **fields)  # type: ignore[arg-type]
 
     def to_json(self) -> dict[str, object]:
-        return dataclasses.asdict(self)
+        d = dataclasses.asdict(self)
+        if self.perturb_axis is None:  # (absent: configs stored before keep comparing equal)
+            del d["perturb_axis"]
+        return d
 
 
 # Presets sweep every registered environment (the four domains, and any plugin you

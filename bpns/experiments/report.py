@@ -12,7 +12,12 @@ from bpns.atomic import atomic_path
 from bpns.experiments import approach_info
 from bpns.experiments.aggregate import Row, aggregate, markdown_table
 from bpns.experiments.cells import EVAL, SWEEP_GNN_SEED, Cell
-from bpns.experiments.plots import save_figure, success_vs_demos, success_vs_time
+from bpns.experiments.plots import (
+    save_figure,
+    success_vs_demos,
+    success_vs_perturbation,
+    success_vs_time,
+)
 from bpns.experiments.presets import PRESETS, SweepConfig
 from bpns.experiments.store import CellStore
 
@@ -34,7 +39,11 @@ def write_report(
     missing = sum(c.kind == EVAL for c in cells) - len(records)
     table = markdown_table(rows)
     written: list[Path] = []
-    if rows:
+    figures = [(FIG_DEMOS, "success vs demonstrations"), (FIG_TIME, "success vs planning time")]
+    if rows and config.perturb_axis is not None:  # the axis' figure instead
+        figures = [(f"success_vs_{config.perturb_axis[0]}", f"success vs {config.perturb_axis[0]}")]
+        written += save_figure(success_vs_perturbation(rows), out / figures[0][0])
+    elif rows:
         written += save_figure(success_vs_demos(rows), out / FIG_DEMOS)
         written += save_figure(success_vs_time(rows, config.timeout), out / FIG_TIME)
     preset = PRESETS.get(config.name)
@@ -46,7 +55,14 @@ def write_report(
         "",
         f"{len(config.seeds)} seeds ({', '.join(map(str, config.seeds))}); each seed has its own "
         f"demonstrations, skills and {config.eval_tasks} eval tasks; planning timeout "
-        f"{config.timeout:g} s per task. Values are mean ± std over seeds (population std); "
+        f"{config.timeout:g} s per task"
+        + (
+            ""
+            if config.perturb_axis is None
+            else f", under each {config.perturb_axis[0]} of "
+            f"{', '.join(format(v, 'g') for v in config.perturb_axis[1])} (`bpns eval --perturb`)"
+        )
+        + ". Values are mean ± std over seeds (population std); "
         "times are over solved tasks, nodes created over all tasks; learning time is the "
         "time spent learning what the approach uses, without loading the demonstrations "
         "(BPNS and its planning ablations: the skills pipeline; No Subgoal: its own skills; "
@@ -66,13 +82,9 @@ def write_report(
         text += [f"**{missing} eval cells are not finished; their rows are incomplete.**", ""]
     text += [table]
     if rows:
-        text += [
-            "",
-            f"![success vs demonstrations]({FIG_DEMOS}.png)",
-            "",
-            f"![success vs planning time]({FIG_TIME}.png)",
-            "",
-        ]
+        text += [""]
+        for stem, caption in figures:
+            text += [f"![{caption}]({stem}.png)", ""]
     md = out / "results.md"
     with atomic_path(md) as tmp:
         tmp.write_text("\n".join(text))

@@ -114,6 +114,7 @@ def _learn(job: CellJob) -> dict[str, Any]:
 
 def _evaluate(job: CellJob) -> dict[str, Any]:
     from bpns.evaluation import EvalSpec, evaluate, save_plans
+    from bpns.perturbations import NOMINAL
 
     cell = job.cell
     assert cell.planning is not None and cell.approach is not None and cell.eval_tasks
@@ -124,6 +125,7 @@ def _evaluate(job: CellJob) -> dict[str, Any]:
         skills_dir=job.inputs[0] if job.inputs else None,
         task_seed=cell.seed,
         planner_seed=cell.seed,
+        perturbation=cell.perturbation or NOMINAL,
     )
     report = evaluate(spec, cell.eval_tasks, workers=1)
     save_plans(job.output, report)

@@ -23,6 +23,7 @@ from bpns.planning.nogoods import NogoodMemo, PrefixCache
 from bpns.planning.refinement import RefinementStats, refine
 from bpns.planning.search import STRATEGIES, AbstractPlan, SearchStats, skeletons
 from bpns.planning.strips import SearchTimeout, ground
+from bpns.rollouts import Rollout, further
 from bpns.structs import Skill, State, STRIPSOperator, Task
 
 
@@ -89,6 +90,8 @@ class PlanResult:
     stats: PlanningStats = field(default_factory=PlanningStats)
     step_starts: tuple[int, ...] = ()
     subgoals: tuple[np.ndarray, ...] = ()
+    # a failed plan: the refinement attempt that got furthest (bpns.rollouts)
+    furthest: Rollout | None = None
 
 
 def plan(
@@ -158,6 +161,7 @@ def plan(
             )
             acc.refinement_time += time.monotonic() - t0
             acc.add(ref.stats, skeleton, ref.reason)
+            acc.furthest = further(acc.furthest, ref.furthest)
             if ref.success:
                 return PlanResult(
                     success=True,
@@ -193,6 +197,7 @@ class _Accumulator:
         self.failures: Counter = Counter()
         self.attempts: list[SkeletonAttempt] = []
         self.search = SearchStats()  # updated in place by the skeleton generator
+        self.furthest: Rollout | None = None
 
     def add(self, s: RefinementStats, skeleton: AbstractPlan, reason: FailureReason | None) -> None:
         self.samples += s.samples
@@ -228,5 +233,12 @@ class _Accumulator:
         skeleton: AbstractPlan | None,
     ) -> PlanResult:
         return PlanResult(
-            success, np.zeros((0, action_dim)), (task.init,), skeleton, (), reason, self.freeze()
+            success,
+            np.zeros((0, action_dim)),
+            (task.init,),
+            skeleton,
+            (),
+            reason,
+            self.freeze(),
+            furthest=self.furthest,
         )

@@ -29,10 +29,11 @@ from bpns.execution import (
     completion_test,
     state_features,
 )
-from bpns.failures import FailureReason
+from bpns.failures import NOT_EXECUTED, FailureReason
 from bpns.planning.config import PlanningConfig
 from bpns.planning.nogoods import NogoodMemo, PrefixCache, StepKey
 from bpns.planning.search import AbstractPlan
+from bpns.rollouts import REACHED, Rollout, further, rollout_of
 from bpns.structs import GroundOperator, Skill, State, Task
 
 
@@ -70,6 +71,8 @@ class RefinementResult:
     step_starts: tuple[int, ...]
     reason: FailureReason | None
     stats: RefinementStats = field(default_factory=RefinementStats)
+    # a failed refinement: the deepest refined prefix and the failed sample after it
+    furthest: Rollout | None = None
 
 
 @dataclass
@@ -235,6 +238,21 @@ def _backtrack(steps: list[_Step], i: int) -> None:
     steps[i].leave()
 
 
+def _attempt(
+    steps: Sequence[_Step], i: int, executor: SkillExecutor, reason: FailureReason
+) -> Rollout:
+    """Steps 0..i-1 as refined, then step i's failed sample (its actions, if it ran)."""
+    done = [(s.op, s.segment.subgoal, s.segment.actions, REACHED) for s in steps[:i] if s.segment]
+    ran = reason not in NOT_EXECUTED
+    failed = (
+        steps[i].op,
+        executor.last_subgoal if ran else None,
+        executor.last_actions if ran else [],
+        str(reason),
+    )
+    return rollout_of([*done, failed], executor.low.size)
+
+
 def refine(
     plan: AbstractPlan,
     skills: Sequence[Skill],
@@ -264,6 +282,7 @@ def refine(
         steps[i].tries = 1
         i = _advance(steps, i, seg)
     reason: FailureReason | None = None
+    furthest: Rollout | None = None
     try:
         while i < n:
             step = steps[i]
@@ -280,6 +299,9 @@ def refine(
             if isinstance(out, FailureReason):
                 counters.failed(i, out)
                 step.horizon_hit |= out is FailureReason.TASK_HORIZON
+                ran = len(executor.last_actions) if out not in NOT_EXECUTED else 0
+                if furthest is None or (i, step.used + ran) > furthest.progress:
+                    furthest = further(furthest, _attempt(steps, i, executor, out))
                 continue
             counters.step_successes[i] += 1
             i = _advance(steps, i, out)
@@ -288,10 +310,12 @@ def refine(
     except ExecutionTimeout:
         counters.failed(min(i, n - 1), FailureReason.TIMEOUT)
         reason = FailureReason.TIMEOUT
+        if i < n:
+            furthest = further(furthest, _attempt(steps, i, executor, FailureReason.TIMEOUT))
     stats = counters.freeze(executor.sim_steps)
     if reason is not None:
         return RefinementResult(
-            False, np.zeros((0, executor.low.size)), (), (), (), (), (), reason, stats
+            False, np.zeros((0, executor.low.size)), (), (), (), (), (), reason, stats, furthest
         )
     return _refined(steps, skills, plan, task, executor.low.size, stats)
 

@@ -109,6 +109,7 @@ def dressed_model(sim_model: mujoco.MjModel, xml: str, robot: Robot = PANDA) -> 
     if meshes is None:
         return None
     spec = mujoco.MjSpec.from_string(xml)
+    spec.nuserdata = sim_model.nuserdata  # a perturbed scene's latency queue is state too
     for body_name, (stem, colour) in LINK_MESHES.items():
         body = spec.body(robot.scene_name(body_name))
         for geom in body.geoms:

@@ -97,7 +97,10 @@ class DoorsEnv(MujocoEnv):
 
     name = "doors"
     # MoveToDoor and MoveThroughDoor are given: motion-planned skills learning keeps.
-    capabilities = Capabilities(oracle_skills=oracle_skills, given_skills=given_skills)
+    # Videos follow the base: it travels rooms away, and the overview shows it tiny.
+    capabilities = Capabilities(
+        oracle_skills=oracle_skills, given_skills=given_skills, default_camera="follow"
+    )
     base_config = BaseConfig()
     controller_config = ControllerConfig(
         workspace_low=(0.2, -0.5, -0.06),
