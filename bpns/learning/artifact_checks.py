@@ -37,7 +37,8 @@ MAX_LAYERS = 64
 _NET_KEY = r"(input_mean|input_std|output_mean|output_std|input_low|input_high|[wb]\d{1,2})"
 _DIMS_KEY = r"dims/(size|state_dims|subgoal_dims|num_objects|objects)"
 POLICY_KEYS = re.compile(rf"{_DIMS_KEY}|net/{_NET_KEY}|use_subgoals|near_scale")
-SAMPLER_KEYS = re.compile(rf"{_DIMS_KEY}|(generator|classifier)/{_NET_KEY}|linear/[wb]0|max_tries")
+_BASE_KEY = r"linear/([wb]0|input_low|input_high)"
+SAMPLER_KEYS = re.compile(rf"{_DIMS_KEY}|(generator|classifier)/{_NET_KEY}|{_BASE_KEY}|max_tries")
 INTEGER_KEYS = re.compile(rf"{_DIMS_KEY}|max_tries|use_subgoals")
 
 
@@ -373,11 +374,14 @@ def check_skill_arrays(policy: Any, sampler: Any, scope_size: int, name: str) ->
     base = getattr(sampler, "base", None)
     if base is not None:
         _require(
-            base.weight.shape == (ns, ng) and base.bias.shape == (ng,),
+            base.weight.shape == (ns, ng)
+            and base.bias.shape == (ng,)
+            and base.low.shape == base.high.shape == (ns,),
             f"{name} sampler: linear base of shape {base.weight.shape}, {base.bias.shape}; "
             f"expected ({ns}, {ng}), ({ng},)",
         )
+        parts = (base.weight, base.bias, base.low, base.high)
         _require(
-            bool(np.isfinite(base.weight).all() and np.isfinite(base.bias).all()),
-            f"{name} sampler: linear base is not finite",
+            all(bool(np.isfinite(a).all()) for a in parts) and bool(np.all(base.low <= base.high)),
+            f"{name} sampler: linear base is not finite or its input box is empty",
         )
