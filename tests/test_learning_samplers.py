@@ -212,3 +212,11 @@ def test_generator_with_linear_base_is_saved_loaded_and_its_mean_is_base_plus_ne
     np.testing.assert_array_equal(back.mean_std(np.array([0.3, 0.2]))[0], mean)
     plain = train_sampler(gen_x, gen_y, cls_data, dims, net, net, 0, linear_base=False)
     assert plain.base is None and "linear/w0" not in plain.to_arrays()
+
+
+def test_a_linear_base_saved_without_an_input_box_loads_unclipped():
+    from bpns.learning.samplers import LinearBase
+
+    arrays = {"linear/w0": np.array([[2.0], [0.0]]), "linear/b0": np.array([1.0])}
+    base = LinearBase.from_arrays(arrays, "linear/")
+    np.testing.assert_array_equal(base(np.array([10.0, 3.0])), [21.0])

@@ -380,8 +380,10 @@ def check_skill_arrays(policy: Any, sampler: Any, scope_size: int, name: str) ->
             f"{name} sampler: linear base of shape {base.weight.shape}, {base.bias.shape}; "
             f"expected ({ns}, {ng}), ({ng},)",
         )
-        parts = (base.weight, base.bias, base.low, base.high)
         _require(
-            all(bool(np.isfinite(a).all()) for a in parts) and bool(np.all(base.low <= base.high)),
+            all(bool(np.isfinite(a).all()) for a in (base.weight, base.bias))
+            and not np.isnan(base.low).any()
+            and not np.isnan(base.high).any()
+            and bool(np.all(base.low <= base.high)),
             f"{name} sampler: linear base is not finite or its input box is empty",
         )

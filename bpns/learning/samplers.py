@@ -115,7 +115,11 @@ class LinearBase:
         def get(key: str) -> np.ndarray:
             return np.array(arrays[f"{prefix}{key}"], np.float64)
 
-        return cls(get("w0"), get("b0"), get("input_low"), get("input_high"))
+        weight = get("w0")
+        if f"{prefix}input_low" not in arrays:  # saved before bases were clipped: no box
+            unbounded = np.full(weight.shape[0], np.inf)
+            return cls(weight, get("b0"), -unbounded, unbounded)
+        return cls(weight, get("b0"), get("input_low"), get("input_high"))
 
 
 class LearnedSampler:
