@@ -143,3 +143,25 @@ def test_scope_trajectories_follow_the_parameter_order():
     scopes = scope_trajectories(dataset)
     assert [s.shape for s in scopes] == [(9, 2)] * 3
     np.testing.assert_array_equal(scopes[0][0], dataset.segments[0].states[0].vec((toy.POINT_OBJ,)))
+
+
+
+def test_a_linear_base_keeps_a_proportional_command_near_the_goal_from_few_segments():
+    # Point2D's demonstrator commands 0.5 x the remaining offset; 20 segments, few steps
+    import dataclasses
+
+    few = dataclasses.replace(CONFIG, policy=MLPConfig(num_steps=300, batch_size=64))
+    data = toy.point_dataset(20, seed=0)
+    with_base = learn_policy(data, dataclasses.replace(few, linear_policy_base=True), seed=0)
+    without = learn_policy(data, few, seed=0)
+    assert with_base.base is not None and without.base is None
+    state = toy.point_state([0.3, -0.2])
+    goal = np.array([0.32, -0.21])  # two centimetres away: where Cover's place hovered
+    truth = toy.GAIN * (goal - state.data[toy.POINT_OBJ])
+    err_with = np.abs(with_base(state, (toy.POINT_OBJ,), goal) - truth).max()
+    err_without = np.abs(without(state, (toy.POINT_OBJ,), goal) - truth).max()
+    assert err_with < 1e-3 < err_without
+    back = LearnedPolicy.from_arrays(with_base.to_arrays())
+    np.testing.assert_array_equal(
+        back(state, (toy.POINT_OBJ,), goal), with_base(state, (toy.POINT_OBJ,), goal)
+    )

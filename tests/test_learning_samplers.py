@@ -166,7 +166,7 @@ def test_a_skill_whose_scope_never_changes_samples_the_current_scope():
 
 def test_linear_base_recovers_an_affine_subgoal_from_few_examples():
     # the hand goes to the object plus a fixed offset: affine in the start state
-    from bpns.learning.samplers import LinearBase
+    from bpns.learning.linear import LinearBase
 
     rng = np.random.default_rng(0)
     x = rng.uniform(-0.5, 0.5, size=(24, 4))
@@ -184,7 +184,7 @@ def test_linear_base_recovers_an_affine_subgoal_from_few_examples():
 
 
 def test_linear_base_is_left_out_where_it_does_not_predict_held_out_segments():
-    from bpns.learning.samplers import LinearBase
+    from bpns.learning.linear import LinearBase
 
     rng = np.random.default_rng(2)
     x = rng.uniform(-1, 1, size=(12, 9))  # few segments, many inputs, targets unrelated
@@ -215,7 +215,7 @@ def test_generator_with_linear_base_is_saved_loaded_and_its_mean_is_base_plus_ne
 
 
 def test_a_linear_base_saved_without_an_input_box_loads_unclipped():
-    from bpns.learning.samplers import LinearBase
+    from bpns.learning.linear import LinearBase
 
     arrays = {"linear/w0": np.array([[2.0], [0.0]]), "linear/b0": np.array([1.0])}
     base = LinearBase.from_arrays(arrays, "linear/")

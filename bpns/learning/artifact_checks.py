@@ -36,8 +36,8 @@ MAX_LAYERS = 64
 
 _NET_KEY = r"(input_mean|input_std|output_mean|output_std|input_low|input_high|[wb]\d{1,2})"
 _DIMS_KEY = r"dims/(size|state_dims|subgoal_dims|num_objects|objects)"
-POLICY_KEYS = re.compile(rf"{_DIMS_KEY}|net/{_NET_KEY}|use_subgoals|near_scale")
 _BASE_KEY = r"linear/([wb]0|input_low|input_high)"
+POLICY_KEYS = re.compile(rf"{_DIMS_KEY}|net/{_NET_KEY}|{_BASE_KEY}|use_subgoals|near_scale")
 SAMPLER_KEYS = re.compile(rf"{_DIMS_KEY}|(generator|classifier)/{_NET_KEY}|{_BASE_KEY}|max_tries")
 INTEGER_KEYS = re.compile(rf"{_DIMS_KEY}|max_tries|use_subgoals")
 
@@ -361,6 +361,7 @@ def check_skill_arrays(policy: Any, sampler: Any, scope_size: int, name: str) ->
         policy.params.output_mean.shape == (policy.params.raw_output_dim,),
         f"{name} policy: output stats shape",
     )
+    _check_base(getattr(policy, "base", None), n_in, policy.params.raw_output_dim, f"{name} policy")
     if sampler is None:
         return
     sdims = sampler.dims
@@ -371,19 +372,24 @@ def check_skill_arrays(policy: Any, sampler: Any, scope_size: int, name: str) ->
     _require(sampler.generator_params.output_mean.shape == (ng,), f"{name} generator: output stats")
     if sampler.classifier_params is not None:
         check_network(sampler.classifier_params, ns + ng, lambda n: n == 1, f"{name} classifier")
-    base = getattr(sampler, "base", None)
-    if base is not None:
-        _require(
-            base.weight.shape == (ns, ng)
-            and base.bias.shape == (ng,)
-            and base.low.shape == base.high.shape == (ns,),
-            f"{name} sampler: linear base of shape {base.weight.shape}, {base.bias.shape}; "
-            f"expected ({ns}, {ng}), ({ng},)",
-        )
-        _require(
-            all(bool(np.isfinite(a).all()) for a in (base.weight, base.bias))
-            and not np.isnan(base.low).any()
-            and not np.isnan(base.high).any()
-            and bool(np.all(base.low <= base.high)),
-            f"{name} sampler: linear base is not finite or its input box is empty",
-        )
+    _check_base(getattr(sampler, "base", None), ns, ng, f"{name} sampler")
+
+
+def _check_base(base: Any, n_in: int, n_out: int, where: str) -> None:
+    """A loaded :class:`bpns.learning.linear.LinearBase` (or None) against its network."""
+    if base is None:
+        return
+    _require(
+        base.weight.shape == (n_in, n_out)
+        and base.bias.shape == (n_out,)
+        and base.low.shape == base.high.shape == (n_in,),
+        f"{where}: linear base of shape {base.weight.shape}, {base.bias.shape}; "
+        f"expected ({n_in}, {n_out}), ({n_out},)",
+    )
+    _require(
+        all(bool(np.isfinite(a).all()) for a in (base.weight, base.bias))
+        and not np.isnan(base.low).any()
+        and not np.isnan(base.high).any()
+        and bool(np.all(base.low <= base.high)),
+        f"{where}: linear base is not finite or its input box is empty",
+    )

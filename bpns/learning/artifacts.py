@@ -372,6 +372,7 @@ def _config_from_json(d: Mapping[str, Any]) -> LearningConfig:
     rest = {k: v for k, v in d.items() if k in fields and k not in nets}
     rest.setdefault("share_effect_data", False)  # skills saved before these existed
     rest.setdefault("linear_sampler_base", False)
+    rest.setdefault("linear_policy_base", False)
     return LearningConfig(**rest, **nets)
 
 

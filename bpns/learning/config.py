@@ -82,6 +82,10 @@ class LearningConfig:
     # The subgoal generator's mean = a ridge-regression map of the start scope + the
     # network's residual (samplers.LinearBase). False: the network alone, as in the paper.
     linear_sampler_base: bool = True
+    # The same under the policy (linear.py): commands proportional to the remaining offset,
+    # which a few dozen segments do not teach a network near the goal (Cover's place
+    # hovered two centimetres above the table). Off by default; domains declare it.
+    linear_policy_base: bool = False
     # A scope dimension counts as "changing" when |final - initial| exceeds this in some
     # segment, and as static when its range over all the skill's states is within it.
     change_tolerance: float = 0.0

@@ -196,6 +196,7 @@ def learn_skills(
                     derive_seed(config.seed, k, _POLICY),
                     config.use_subgoals,
                     config.near_goal_scale,
+                    config.linear_policy_base,
                 )
         with timer.stage("samplers"):
             sampler: LearnedSampler | CurrentStateSampler

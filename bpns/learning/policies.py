@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bpns.learning.config import LearningConfig, MLPConfig
+from bpns.learning.linear import LinearBase
 from bpns.learning.mlp import MLPParams, Regressor, train_regressor
 from bpns.learning.operators import SkillDataset
 from bpns.structs import Object, State
@@ -139,7 +140,8 @@ def policy_training_data(
 
 
 class LearnedPolicy:
-    """SubgoalPolicy backed by a numpy MLP. Outputs are returned unclipped and unchecked
+    """SubgoalPolicy backed by a numpy MLP (plus an affine ``base`` of its input, when
+    learned: :mod:`bpns.learning.linear`). Outputs are returned unclipped and unchecked
     (non-finite values included): action limits and validity are the planner's job."""
 
     def __init__(
@@ -148,11 +150,13 @@ class LearnedPolicy:
         params: MLPParams,
         use_subgoals: bool = True,
         near_scale: float | None = None,
+        base: LinearBase | None = None,
     ) -> None:
         self.dims = dims
         self.params = params
         self.use_subgoals = use_subgoals
         self.near_scale = near_scale
+        self.base = base
         self._net = Regressor(params)
         self._sd, self._gd = dims.state_dims, dims.subgoal_dims
 
@@ -170,24 +174,30 @@ class LearnedPolicy:
                 x = np.concatenate((x[self._sd], rel, np.tanh(rel / self.near_scale)))
         else:
             x = x[self._sd]
-        return self._net(x)
+        out = self._net(x)
+        return out if self.base is None else out + self.base(x)
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        return {
+        out = {
             **self.dims.to_arrays("dims/"),
             **self.params.to_arrays("net/"),
             "use_subgoals": np.array(self.use_subgoals),
             "near_scale": np.array(np.nan if self.near_scale is None else self.near_scale),
         }
+        if self.base is not None:
+            out.update(self.base.to_arrays("linear/"))
+        return out
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> LearnedPolicy:
         near = float(arrays["near_scale"]) if "near_scale" in arrays else float("nan")
+        has_base = any(k.startswith("linear/") for k in arrays)
         return cls(
             ScopeDims.from_arrays(arrays, "dims/"),
             MLPParams.from_arrays(arrays, "net/"),
             bool(arrays["use_subgoals"]),
             None if np.isnan(near) else near,
+            LinearBase.from_arrays(arrays, "linear/") if has_base else None,
         )
 
 
@@ -199,10 +209,18 @@ def train_policy(
     seed: int,
     use_subgoals: bool = True,
     near_scale: float | None = None,
+    linear_base: bool = False,
 ) -> LearnedPolicy:
+    """``linear_base``: the network learns the residual of an affine map of its input,
+    where that map predicts held-out rows better than their mean (:mod:`bpns.learning.linear`)."""
     inputs, targets = policy_training_data(scopes, actions, dims, use_subgoals, near_scale)
-    params = train_regressor(inputs, targets, config, seed)
-    return LearnedPolicy(dims, params, use_subgoals, near_scale)
+    base = None
+    if linear_base and inputs.shape[1] > 0:
+        margin = 0.1 if config.input_margin is None else config.input_margin
+        base = LinearBase.fit_if_it_helps(inputs, targets, config.std_floor, margin)
+    residual = targets if base is None else targets - base(inputs)
+    params = train_regressor(inputs, residual, config, seed)
+    return LearnedPolicy(dims, params, use_subgoals, near_scale, base)
 
 
 def learn_policy(
@@ -219,5 +237,12 @@ def learn_policy(
         dims = ScopeDims.from_scopes(scopes, config.change_tolerance, dataset.scope_size)
     actions = [seg.actions for seg in dataset.segments]
     return train_policy(
-        scopes, actions, dims, config.policy, seed, config.use_subgoals, config.near_goal_scale
+        scopes,
+        actions,
+        dims,
+        config.policy,
+        seed,
+        config.use_subgoals,
+        config.near_goal_scale,
+        config.linear_policy_base,
     )
