@@ -70,8 +70,9 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--no-linear-base",
         action="store_true",
-        help="subgoal generators are networks alone, as in the paper (default: a "
-        "ridge-regression map of the start state plus the network's residual)",
+        help="subgoal generators and policies are networks alone, as in the paper "
+        "(default: a ridge-regression map under each generator, and under each policy "
+        "where the environment declares it, with the network learning the residual)",
     )
     p.add_argument(
         "--settle-steps",
@@ -138,6 +139,7 @@ def run(args: argparse.Namespace) -> int:
         anchor_parameters=False if args.no_anchor else None,
         share_effect_data=False if args.no_share else None,
         linear_sampler_base=False if args.no_linear_base else None,
+        linear_policy_base=False if args.no_linear_base else None,
         settle_steps=args.settle_steps,
         index_names=True if args.index_names else None,
     )
