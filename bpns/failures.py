@@ -9,6 +9,13 @@ from __future__ import annotations
 import enum
 
 
+class NoSubgoal(Exception):
+    """Raised by a subgoal sampler that has no subgoal worth simulating from this state
+    (a hand-written sampler: beyond the arm's reach; a learned one: every draw lies where
+    no demonstration went, :mod:`bpns.learning.support`). The planner counts a failed
+    sample without simulating anything."""
+
+
 class FailureReason(str, enum.Enum):
     # a whole attempt at a task
     TIMEOUT = "timeout"  # the wall-clock budget ran out
@@ -19,6 +26,7 @@ class FailureReason(str, enum.Enum):
     # one execution of a skill (or of a policy acting every step)
     SAMPLER_ERROR = "sampler_error"  # the subgoal sampler raised
     SAMPLER_NONFINITE = "sampler_nonfinite"  # ... or returned NaN/inf
+    NO_SUBGOAL = "no_subgoal"  # the sampler refused: no subgoal worth simulating
     POLICY_ERROR = "policy_error"  # the policy raised or returned the wrong shape
     POLICY_NONFINITE = "policy_nonfinite"  # ... or returned NaN/inf
     SKILL_HORIZON = "skill_horizon"  # the skill's expected atoms never held in time
@@ -42,6 +50,8 @@ MEANING: dict[FailureReason, str] = {
     FailureReason.NO_SKILL: "no ground skill was left to execute",
     FailureReason.SAMPLER_ERROR: "the subgoal sampler raised",
     FailureReason.SAMPLER_NONFINITE: "the subgoal sampler returned NaN/inf",
+    FailureReason.NO_SUBGOAL: "the sampler had no subgoal worth simulating (out of reach or "
+    "of the demonstrations' support)",
     FailureReason.POLICY_ERROR: "the policy raised or returned the wrong shape",
     FailureReason.POLICY_NONFINITE: "the policy returned NaN/inf",
     FailureReason.SKILL_HORIZON: "the step's atoms did not hold within the skill's horizon",
@@ -57,6 +67,7 @@ NOT_EXECUTED: frozenset[FailureReason] = frozenset(
     {
         FailureReason.SAMPLER_ERROR,
         FailureReason.SAMPLER_NONFINITE,
+        FailureReason.NO_SUBGOAL,
         FailureReason.NOGOOD,
         FailureReason.EXHAUSTED,
     }

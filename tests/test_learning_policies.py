@@ -145,7 +145,6 @@ def test_scope_trajectories_follow_the_parameter_order():
     np.testing.assert_array_equal(scopes[0][0], dataset.segments[0].states[0].vec((toy.POINT_OBJ,)))
 
 
-
 def test_a_linear_base_keeps_a_proportional_command_near_the_goal_from_few_segments():
     # Point2D's demonstrator commands 0.5 x the remaining offset; 20 segments, few steps
     import dataclasses

@@ -4,12 +4,18 @@ import numpy as np
 import pytest
 import torch
 
+from bpns.failures import NoSubgoal
 from bpns.learning.config import LearningConfig, MLPConfig
 from bpns.learning.mlp import MLPParams
 from bpns.learning.operators import SkillDataset, learn_operators
 from bpns.learning.partition import partition_segments
 from bpns.learning.policies import ScopeDims, scope_trajectories
-from bpns.learning.samplers import LearnedSampler, learn_sampler, sampler_training_data
+from bpns.learning.samplers import (
+    LearnedSampler,
+    context_dims,
+    learn_sampler,
+    sampler_training_data,
+)
 from bpns.learning.segmentation import segment_demonstrations
 from bpns.structs import GroundAtom, Predicate, Segment
 from tests import toy_learning as toy
@@ -220,3 +226,42 @@ def test_a_linear_base_saved_without_an_input_box_loads_unclipped():
     arrays = {"linear/w0": np.array([[2.0], [0.0]]), "linear/b0": np.array([1.0])}
     base = LinearBase.from_arrays(arrays, "linear/")
     np.testing.assert_array_equal(base(np.array([10.0, 3.0])), [21.0])
+
+
+def test_a_skill_refuses_to_start_where_no_demonstration_started(skills):
+    """The pick's block position is context (the pick never moves it); a block far beyond
+    every demonstrated one is a world the skill was never shown, refused without a draw."""
+    sampler = skills.skill("Holding").sampler
+    scope = ScopeDims.scope(sampler.dims, (B0, R))
+    names = [f"{o.name}.{f}" for o in scope for f in o.type.feature_names]
+    context = [names[sampler.dims.state_dims[j]] for j in sampler.novelty.dims]
+    assert "block0.x" in context and "robot.x" not in context
+    far = toy.make_state(1.0, [3.0 + 50.0, 7.5], [5.0, 9.0])
+    with pytest.raises(NoSubgoal):
+        sampler(far, (B0, R), np.random.default_rng(0))
+    # the same draw as before from a demonstrated world: the test consumes no randomness
+    near = toy.make_state(1.0, [3.0, 7.5], [5.0, 9.0])
+    off = LearnedSampler.from_arrays(
+        {k: v for k, v in sampler.to_arrays().items() if not k.startswith("novelty")}
+    )
+    np.testing.assert_array_equal(
+        sampler(near, (B0, R), np.random.default_rng(4)),
+        off(near, (B0, R), np.random.default_rng(4)),
+    )
+    assert off.novelty is None
+    off(far, (B0, R), np.random.default_rng(0))  # switched off: it extrapolates
+
+
+def test_dims_a_skill_moves_are_not_context_even_when_the_start_is_new(skills):
+    sampler = skills.skill("Holding").sampler
+    robot_far = toy.make_state(40.0, [3.0, 7.5], [5.0, 9.0])  # robot x is set by the pick
+    goal = sampler(robot_far, (B0, R), np.random.default_rng(0))
+    assert np.isfinite(goal).all()
+
+
+def test_context_dims_are_those_that_varied_between_starts_and_barely_moved():
+    dims = ScopeDims(3, np.array([0, 1, 2]), np.array([1, 2]))
+    starts = np.array([[0.0, 0.0, 5.0], [1.0, 1.0, 5.0], [2.0, 2.0, 5.0]])
+    moved = np.array([[0.0, 3.0], [0.0, -3.0], [0.05, 0.0]])  # dim 1 still, dim 2 moves
+    # dim 0: varied, never moved; dim 1: varied, moved 0.05 <= 0.1 x 2; dim 2: constant
+    assert context_dims(starts, moved, dims).tolist() == [0, 1]

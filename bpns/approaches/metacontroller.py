@@ -29,7 +29,7 @@ from bpns.execution import (
     completion_test,
     expected_after,
 )
-from bpns.failures import NOT_EXECUTED, FailureReason
+from bpns.failures import NOT_EXECUTED, FailureReason, NoSubgoal
 from bpns.planning.config import PlanningConfig
 from bpns.rollouts import REACHED, rollout_of
 from bpns.structs import GroundAtom, Object, Skill, State, Task
@@ -115,6 +115,9 @@ class Metacontroller(Approach):
                             subgoal = np.asarray(
                                 choice.skill.sampler(state, op.objects, rng), dtype=np.float64
                             )
+                        except NoSubgoal:
+                            out = FailureReason.NO_SUBGOAL
+                            continue
                         except Exception:
                             out = FailureReason.SAMPLER_ERROR
                             continue

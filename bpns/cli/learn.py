@@ -75,6 +75,13 @@ def configure(p: argparse.ArgumentParser) -> None:
         "where the environment declares it, with the network learning the residual)",
     )
     p.add_argument(
+        "--no-novelty-check",
+        action="store_true",
+        help="simulate every sample, as in the paper (default: a skill's sampler refuses to "
+        "start where none of its demonstrations started, e.g. a hand press at a button "
+        "farther than any pressed by hand, and the planner moves on without simulating)",
+    )
+    p.add_argument(
         "--settle-steps",
         type=positive,
         help="contact changes closer than this are one event "
@@ -140,6 +147,7 @@ def run(args: argparse.Namespace) -> int:
         share_effect_data=False if args.no_share else None,
         linear_sampler_base=False if args.no_linear_base else None,
         linear_policy_base=False if args.no_linear_base else None,
+        refuse_novel_starts=False if args.no_novelty_check else None,
         settle_steps=args.settle_steps,
         index_names=True if args.index_names else None,
     )

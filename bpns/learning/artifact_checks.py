@@ -38,8 +38,10 @@ _NET_KEY = r"(input_mean|input_std|output_mean|output_std|input_low|input_high|[
 _DIMS_KEY = r"dims/(size|state_dims|subgoal_dims|num_objects|objects)"
 _BASE_KEY = r"linear/([wb]0|input_low|input_high)"
 POLICY_KEYS = re.compile(rf"{_DIMS_KEY}|net/{_NET_KEY}|{_BASE_KEY}|use_subgoals|near_scale")
-SAMPLER_KEYS = re.compile(rf"{_DIMS_KEY}|(generator|classifier)/{_NET_KEY}|{_BASE_KEY}|max_tries")
-INTEGER_KEYS = re.compile(rf"{_DIMS_KEY}|max_tries|use_subgoals")
+SAMPLER_KEYS = re.compile(
+    rf"{_DIMS_KEY}|(generator|classifier)/{_NET_KEY}|{_BASE_KEY}|max_tries|novelty/(dims|low|high)"
+)
+INTEGER_KEYS = re.compile(rf"{_DIMS_KEY}|max_tries|use_subgoals|novelty/dims")
 
 
 # ------------------------------------------------------------------------------ files
@@ -373,6 +375,20 @@ def check_skill_arrays(policy: Any, sampler: Any, scope_size: int, name: str) ->
     if sampler.classifier_params is not None:
         check_network(sampler.classifier_params, ns + ng, lambda n: n == 1, f"{name} classifier")
     _check_base(getattr(sampler, "base", None), ns, ng, f"{name} sampler")
+    _check_novelty(sampler.novelty, ns, f"{name} sampler")
+
+
+def _check_novelty(novelty: Any, ns: int, where: str) -> None:
+    """A loaded :class:`bpns.learning.samplers.Novelty` (or None) against the state dims."""
+    if novelty is None:
+        return
+    d = novelty.dims
+    ok = d.ndim == 1 and bool(np.all((d >= 0) & (d < ns))) and len(np.unique(d)) == len(d)
+    _require(ok, f"{where}: novelty dims {d.tolist()} out of range for {ns} state dims")
+    shapes = novelty.low.shape == d.shape == novelty.high.shape
+    _require(shapes, f"{where}: novelty bounds need one value per dim ({d.size})")
+    finite = np.isfinite(novelty.low).all() and np.isfinite(novelty.high).all()
+    _require(bool(finite) and bool(np.all(novelty.low <= novelty.high)), f"{where}: novelty bounds")
 
 
 def _check_base(base: Any, n_in: int, n_out: int, where: str) -> None:

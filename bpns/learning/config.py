@@ -86,6 +86,15 @@ class LearningConfig:
     # which a few dozen segments do not teach a network near the goal (Cover's place
     # hovered two centimetres above the table). Off by default; domains declare it.
     linear_policy_base: bool = False
+    # A sampler asked to start where its skill was never demonstrated refuses at once
+    # (samplers.LearnedSampler.novel): a start-scope dim beyond the range its segments
+    # started from, widened like the networks' input box, by more than ``novelty_floor``
+    # feature units. Pressing a far button by hand, or picking Coffee's pot by a handle
+    # turned away, otherwise costs 60-90 simulated steps per sample of a policy that
+    # cannot see beyond its box. Dims constant in the data are exempt (the box pins them).
+    # False: every draw is simulated, as in the paper.
+    refuse_novel_starts: bool = True
+    novelty_floor: float = 0.01
     # A scope dimension counts as "changing" when |final - initial| exceeds this in some
     # segment, and as static when its range over all the skill's states is within it.
     change_tolerance: float = 0.0
@@ -126,6 +135,8 @@ class LearningConfig:
             raise ValueError(f"max_rejection_tries must be >= 1, got {self.max_rejection_tries}")
         if self.near_goal_scale is not None and not 0.0 < self.near_goal_scale < math.inf:
             raise ValueError(f"near_goal_scale must be finite and > 0, got {self.near_goal_scale}")
+        if not 0.0 <= self.novelty_floor < math.inf:
+            raise ValueError(f"novelty_floor must be finite and >= 0, got {self.novelty_floor}")
         if not 0.0 <= self.change_tolerance < math.inf:
             raise ValueError(f"change_tolerance must be >= 0, got {self.change_tolerance}")
 

@@ -221,6 +221,7 @@ def learn_skills(
                     seed,
                     config.max_rejection_tries,
                     config.linear_sampler_base,
+                    config.novelty_floor if config.refuse_novel_starts else None,
                 )
                 negatives = int((cls_data[:, -1] == 0).sum())
             else:

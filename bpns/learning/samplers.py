@@ -27,9 +27,11 @@ held-out hand-y error at 8 mm (p90 5 cm) with a learned std of 0.9 mm.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
+from bpns.failures import NoSubgoal
 from bpns.learning.config import LearningConfig, MLPConfig
 from bpns.learning.linear import LinearBase
 from bpns.learning.mlp import (
@@ -47,7 +49,9 @@ from bpns.structs import Object, Segment, State, STRIPSOperator
 class LearnedSampler:
     """SubgoalSampler: draw relative subgoals from the generator, keep the first the
     classifier accepts (prob > 0.5), else the last of ``max_tries``; return it absolute.
-    With a ``base`` the generator's mean is ``base(s)`` plus the network's."""
+    With a ``base`` the generator's mean is ``base(s)`` plus the network's. With a
+    ``novelty`` test it refuses novel starts with :class:`~bpns.failures.NoSubgoal`,
+    which the planner counts as a failed sample without simulating it."""
 
     def __init__(
         self,
@@ -56,12 +60,14 @@ class LearnedSampler:
         classifier: MLPParams | None,
         max_tries: int = 100,
         base: LinearBase | None = None,
+        novelty: Novelty | None = None,
     ) -> None:
         self.dims = dims
         self.generator_params = generator
         self.classifier_params = classifier
         self.max_tries = max_tries
         self.base = base
+        self.novelty = novelty
         self._gen = GaussianRegressor(generator)
         self._cls = None if classifier is None else BinaryClassifier(classifier)
 
@@ -83,11 +89,18 @@ class LearnedSampler:
     ) -> np.ndarray:
         x = self._start(state, objects)
         s = x[self.dims.state_dims]
+        if self.novel(s):
+            raise NoSubgoal("the skill was never demonstrated from a start like this one")
         mean, std = self.mean_std(s)
         rel = self._draw(s, mean, std, rng)
         subgoal = x.copy()
         subgoal[self.dims.subgoal_dims] += rel
         return subgoal
+
+    def novel(self, s: np.ndarray) -> bool:
+        """Does the start (state dims ``s``) lie in a world none of the skill's segments
+        started in (:class:`Novelty`)?"""
+        return self.novelty is not None and self.novelty.novel(s)
 
     def _draw(
         self, s: np.ndarray, mean: np.ndarray, std: np.ndarray, rng: np.random.Generator
@@ -125,6 +138,8 @@ class LearnedSampler:
             out.update(self.classifier_params.to_arrays("classifier/"))
         if self.base is not None:
             out.update(self.base.to_arrays("linear/"))
+        if self.novelty is not None:
+            out.update(self.novelty.to_arrays("novelty/"))
         return out
 
     @classmethod
@@ -137,6 +152,7 @@ class LearnedSampler:
             MLPParams.from_arrays(arrays, "classifier/") if has_classifier else None,
             int(arrays["max_tries"]),
             LinearBase.from_arrays(arrays, "linear/") if has_base else None,
+            Novelty.from_arrays(arrays, "novelty/") if "novelty/dims" in arrays else None,
         )
 
 
@@ -222,6 +238,72 @@ def sampler_training_data(
     return gen_x, gen_y, np.concatenate((rows, labels[:, None]), axis=1)
 
 
+CONTEXT_MOVE = 0.1  # a context dim moves less than this fraction of its spread over starts
+RANGE_MARGIN = 0.1  # ... and may lie this fraction of its spread beyond the demonstrated range
+
+
+@dataclass(frozen=True, eq=False)
+class Novelty:
+    """A sampler's test of its start: is a *context* dim (``dims``, indices into the state
+    dims; see :func:`context_dims`) outside ``[low, high]``, the range its segments
+    started from widened by ``RANGE_MARGIN`` of the spread plus ``novelty_floor``?
+
+    Networks see such a dim clipped into their input box, so they answer for another
+    world: at 250 Stick Button demonstrations the hand press at a button 0.92 m away
+    proposed the hand at 0.65 m, the policy got there, the press never happened, and the
+    rollout ran 60-90 simulated steps until "stuck" (86 % of all simulated steps).
+    """
+
+    dims: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+
+    def novel(self, s: np.ndarray) -> bool:
+        x = s[self.dims]
+        return bool(((x < self.low) | (x > self.high)).any())
+
+    @classmethod
+    def of(cls, gen_x: np.ndarray, gen_y: np.ndarray, dims: ScopeDims, floor: float) -> Novelty:
+        j = context_dims(gen_x, gen_y, dims)
+        lo, hi = gen_x[:, j].min(axis=0), gen_x[:, j].max(axis=0)
+        pad = RANGE_MARGIN * (hi - lo) + floor
+        return cls(j, lo - pad, hi + pad)
+
+    def to_arrays(self, prefix: str) -> dict[str, np.ndarray]:
+        return {
+            f"{prefix}dims": self.dims.astype(np.int64),
+            f"{prefix}low": self.low.astype(np.float64),
+            f"{prefix}high": self.high.astype(np.float64),
+        }
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str) -> Novelty:
+        return cls(
+            np.asarray(arrays[f"{prefix}dims"], dtype=np.int64),
+            np.asarray(arrays[f"{prefix}low"], dtype=np.float64),
+            np.asarray(arrays[f"{prefix}high"], dtype=np.float64),
+        )
+
+
+def context_dims(gen_x: np.ndarray, gen_y: np.ndarray, dims: ScopeDims) -> np.ndarray:
+    """The state dims (indices into ``gen_x``'s columns) a skill takes as given: they
+    varied between its segments' starts, and no segment moved them by more than
+    ``CONTEXT_MOVE`` of that spread (the button's place for a press, the pot's rotation
+    for a pick; physics moves them a hair). A novel value of one of them is a world the
+    skill was never shown. Dims the skill sets are not context: its closed-loop policy
+    moves them, and they drift with the task's length (Coffee's pot tilts further for a
+    third cup than in any demonstration's second)."""
+    spread = gen_x.max(axis=0) - gen_x.min(axis=0) if len(gen_x) else np.zeros(gen_x.shape[1])
+    where = {int(d): k for k, d in enumerate(dims.subgoal_dims)}
+    keep = []
+    for j, d in enumerate(dims.state_dims):
+        k = where.get(int(d))
+        moved = 0.0 if k is None or not len(gen_y) else float(np.abs(gen_y[:, k]).max())
+        if spread[j] > 0 and moved <= CONTEXT_MOVE * spread[j]:
+            keep.append(j)
+    return np.asarray(keep, dtype=np.int64)
+
+
 def train_sampler(
     gen_x: np.ndarray,
     gen_y: np.ndarray,
@@ -232,9 +314,11 @@ def train_sampler(
     seed: int,
     max_tries: int = 100,
     linear_base: bool = False,
+    novelty_floor: float | None = None,
 ) -> LearnedSampler | CurrentStateSampler:
     """Train generator and (if there are negatives) classifier; seeds differ per net.
     ``linear_base``: the generator learns the residual of a ridge fit (:class:`LinearBase`).
+    ``novelty_floor``: the sampler refuses novel starts (:class:`Novelty`).
 
     A skill whose scope never changes in the data has nothing to sample: its subgoal is
     the current scope.
@@ -253,7 +337,8 @@ def train_sampler(
     classifier = None
     if (labels == 0).any():
         classifier = train_classifier(classifier_data[:, :-1], labels, classifier_config, seed + 1)
-    return LearnedSampler(dims, generator, classifier, max_tries, base)
+    novelty = None if novelty_floor is None else Novelty.of(gen_x, gen_y, dims, novelty_floor)
+    return LearnedSampler(dims, generator, classifier, max_tries, base, novelty)
 
 
 def learn_sampler(
@@ -282,4 +367,5 @@ def learn_sampler(
         seed,
         config.max_rejection_tries,
         config.linear_sampler_base,
+        config.novelty_floor if config.refuse_novel_starts else None,
     )

@@ -29,7 +29,7 @@ from bpns.execution import (
     completion_test,
     state_features,
 )
-from bpns.failures import NOT_EXECUTED, FailureReason
+from bpns.failures import NOT_EXECUTED, FailureReason, NoSubgoal
 from bpns.planning.config import PlanningConfig
 from bpns.planning.nogoods import NogoodMemo, PrefixCache, StepKey
 from bpns.planning.search import AbstractPlan
@@ -165,6 +165,8 @@ def _sample(
     objects = step.op.objects
     try:
         subgoal = np.asarray(step.skill.sampler(step.start, objects, rng), dtype=np.float64)
+    except NoSubgoal:
+        return FailureReason.NO_SUBGOAL
     except Exception:
         return FailureReason.SAMPLER_ERROR
     if not np.isfinite(subgoal).all():

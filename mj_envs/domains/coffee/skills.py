@@ -17,9 +17,9 @@ PourFromOtherCup, Twist, PickPotAfterTwist. As simulated:
 Subgoals are absolute scope vectors; policies read their parameters from them (the knob
 wrist, the turned rotation, the pot's place on the plate, the press point, the pouring
 tilt). Policies are stateless functions of (state, subgoal). Samplers know the rules
-(they are the oracle): they raise :class:`Unreachable` for a subgoal no motion achieves
-(e.g. a handle turned beyond 60 deg), which the planner counts as a failed sample
-without simulating anything.
+(they are the oracle): they raise :class:`bpns.failures.NoSubgoal` for a subgoal no
+motion achieves (e.g. a handle turned beyond 60 deg), which the planner counts as a
+failed sample without simulating anything.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from bpns.failures import NoSubgoal
 from bpns.structs import LiftedAtom, Object, Skill, State, STRIPSOperator, Variable
 from mj_envs.domains.coffee.behaviours import (
     APPROACH_CLEARANCE,
@@ -93,10 +94,6 @@ OPEN = 0.038  # fingers this open (per finger) count as open
 GRASP_NOISE, PLACE_NOISE, PRESS_NOISE = 0.002, 0.015, 0.004
 UPRIGHT = 0.15  # pot tilt below which the pot counts as upright
 SPOUT_ALIGNED, SPOUT_OFF = 0.006, 0.02
-
-
-class Unreachable(ValueError):
-    """No motion of the arm achieves this subgoal (a failed sample, found for free)."""
 
 
 _R, _P = Variable("?robot", ROBOT), Variable("?pot", POT)
@@ -365,7 +362,7 @@ class TwistSampler:
         try:
             sub[R_WRIST] = knob_wrist(rotation, side * float(rng.uniform(*TWIST_TARGET)))
         except RuntimeError as err:
-            raise Unreachable(str(err)) from None
+            raise NoSubgoal(str(err)) from None
         return sub
 
 
@@ -381,7 +378,7 @@ class PickPotAfterTwistSampler:
         lo = max(-PICK_RULE + 0.1, rotation - wrist + WRIST_LIMITS[0] + WRIST_MARGIN)
         hi = min(PICK_RULE - 0.1, rotation - wrist + WRIST_LIMITS[1] - WRIST_MARGIN)
         if lo > hi:
-            raise Unreachable("the wrist cannot turn the pot to face the robot from this grasp")
+            raise NoSubgoal("the wrist cannot turn the pot to face the robot from this grasp")
         sub = state.vec(objects).copy()
         sub[P_ROTATION] = float(rng.uniform(lo, hi))
         return sub
@@ -395,7 +392,7 @@ class PickPotSampler:
     ) -> np.ndarray:
         pot = objects[1]
         if abs(state.get(pot, "rotation")) > PICK_RULE:
-            raise Unreachable("the handle faces away from the robot")
+            raise NoSubgoal("the handle faces away from the robot")
         sub = state.vec(objects).copy()
         sub[0:2] = handle_grasp(state, pot)[:2] + rng.uniform(-GRASP_NOISE, GRASP_NOISE, 2)
         return sub

@@ -11,8 +11,8 @@ Subgoals are absolute scope vectors; policies read the hand's target xy from the
 part (``subgoal[0:2]``): the press point for a hand press, the hand position that puts
 the tip on the button for a stick press, the grasp point for a pick. Policies are
 stateless functions of (state, subgoal). Samplers know the arm's reach (they are the
-oracle): a sampler raises :class:`Unreachable` for a subgoal no motion can achieve, which
-the planner counts as a failed sample without simulating anything.
+oracle): a sampler raises :class:`bpns.failures.NoSubgoal` for a subgoal no motion can
+achieve, which the planner counts as a failed sample without simulating anything.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from bpns.failures import NoSubgoal
 from bpns.structs import LiftedAtom, Object, Skill, State, STRIPSOperator, Variable
 from mj_envs.domains.stick_button.behaviours import (
     FINGER_REACH,
@@ -57,10 +58,6 @@ XY_NOISE = 0.004  # subgoal jitter of press points (the cap is 4.4 cm wide)
 ALIGNED_HIGH, ALIGNED_LOW = 0.006, 0.012  # xy error to start / keep descending
 STICK_BACK_MIN_X = 0.12  # the held stick's back end must stay clear of the robot's base
 FINGERS_CLOSED, FINGERS_OPEN = 0.004, 0.035
-
-
-class Unreachable(ValueError):
-    """No motion of the arm achieves this subgoal (a failed sample, found for free)."""
 
 
 _R, _S = Variable("?robot", ROBOT), Variable("?stick", STICK)
@@ -199,7 +196,7 @@ class RobotPressSampler:
     ) -> np.ndarray:
         button = objects[1]
         if np.hypot(state.get(button, "x"), state.get(button, "y")) > FINGER_REACH:
-            raise Unreachable(f"{button.name} is beyond the fingertips' reach")
+            raise NoSubgoal(f"{button.name} is beyond the fingertips' reach")
         sub = state.vec(objects).copy()
         sub[0:2] = state.data[button][:2] + rng.uniform(-XY_NOISE, XY_NOISE, 2)
         return sub
@@ -218,7 +215,7 @@ class StickPressSampler:
         back, _ = stick_axis(state, stick)
         back = back + hand - state.data[robot][:2]
         if np.hypot(*hand) > HAND_REACH or back[0] < STICK_BACK_MIN_X:
-            raise Unreachable(f"the stick's tip cannot be held over {button.name}")
+            raise NoSubgoal(f"the stick's tip cannot be held over {button.name}")
         sub = state.vec(objects).copy()
         sub[0:2] = hand
         return sub
