@@ -87,11 +87,10 @@ class LearningConfig:
     # hovered two centimetres above the table). Off by default; domains declare it.
     linear_policy_base: bool = False
     # A sampler asked to start where its skill was never demonstrated refuses at once
-    # (samplers.LearnedSampler.novel): a start-scope dim beyond the range its segments
-    # started from, widened like the networks' input box, by more than ``novelty_floor``
-    # feature units. Pressing a far button by hand, or picking Coffee's pot by a handle
-    # turned away, otherwise costs 60-90 simulated steps per sample of a policy that
-    # cannot see beyond its box. Dims constant in the data are exempt (the box pins them).
+    # (samplers.Novelty): a context dim (one the skill leaves as it finds it) beyond the
+    # range its segments started from, widened by a tenth of the spread plus
+    # ``novelty_floor`` feature units. Pressing a far button by hand, or picking Coffee's
+    # pot by a handle turned away, otherwise costs 60-90 simulated steps per sample.
     # False: every draw is simulated, as in the paper.
     refuse_novel_starts: bool = True
     novelty_floor: float = 0.01
