@@ -16,12 +16,23 @@ def object_tuples(objects: Sequence[Object], types: Sequence[Type]) -> Iterator[
             yield combo
 
 
-def abstract(state: State, predicates: Collection[Predicate]) -> frozenset[GroundAtom]:
-    """alpha(x): every ground atom over ``state``'s objects whose classifier holds."""
-    objects = state.objects
-    return frozenset(
+def ground_atoms(
+    objects: Sequence[Object], predicates: Collection[Predicate]
+) -> tuple[GroundAtom, ...]:
+    """Every ground atom of ``predicates`` over ``objects``, true or not: built once for
+    the many states of one task (a demonstration), which all hold the same objects."""
+    return tuple(
         GroundAtom(p, combo)
         for p in sorted(predicates)
         for combo in object_tuples(objects, p.types)
-        if p.holds(state, combo)
     )
+
+
+def true_atoms(state: State, atoms: Sequence[GroundAtom]) -> frozenset[GroundAtom]:
+    """The atoms of ``atoms`` (from :func:`ground_atoms`) whose classifier holds in ``state``."""
+    return frozenset(a for a in atoms if a.predicate.classifier(state, a.objects))
+
+
+def abstract(state: State, predicates: Collection[Predicate]) -> frozenset[GroundAtom]:
+    """alpha(x): every ground atom over ``state``'s objects whose classifier holds."""
+    return true_atoms(state, ground_atoms(state.objects, predicates))

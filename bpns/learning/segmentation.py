@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Collection, Iterable
 
-from bpns.abstraction import abstract
+from bpns.abstraction import ground_atoms, true_atoms
 from bpns.structs import Demonstration, GroundAtom, Predicate, Segment
 
 
@@ -59,13 +59,16 @@ def segment_demonstration(
         )
     states = demo.states
     labels = demo.labels  # the demonstrator's commands: what a skill's policy imitates
-    contact = [abstract(s, contact_predicates) for s in states]
+    objects, keys = states[0].objects, states[0].data.keys()
+    if any(s.data.keys() != keys for s in states):
+        raise ValueError("a demonstration's states must all hold the same objects")
+    watched = ground_atoms(objects, contact_predicates)
+    contact = [true_atoms(s, watched) for s in states]
     boundaries = [0, *switch_points(contact, settle_steps)]
     if boundaries[-1] != len(states) - 1:
         boundaries.append(len(states) - 1)
-    full: dict[int, frozenset[GroundAtom]] = {
-        i: abstract(states[i], predicates) for i in boundaries
-    }
+    every = ground_atoms(objects, predicates)
+    full: dict[int, frozenset[GroundAtom]] = {i: true_atoms(states[i], every) for i in boundaries}
     segments = []
     for start, end in zip(boundaries[:-1], boundaries[1:], strict=True):
         init, final = full[start], full[end]
