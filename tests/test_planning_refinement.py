@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from bpns.abstraction import abstract
+from bpns.failures import NoSubgoal
 from bpns.planning.config import PlanningConfig
 from bpns.planning.refinement import refine
 from bpns.planning.search import AbstractPlan
@@ -163,6 +164,10 @@ def _nan_sampler(state, objs, rng):
     return np.full(4, np.nan)
 
 
+def _refusing_sampler(state, objs, rng):
+    raise NoSubgoal("never demonstrated from here")
+
+
 @pytest.mark.parametrize(
     "policy, sampler, reason",
     [
@@ -172,6 +177,7 @@ def _nan_sampler(state, objs, rng):
         (lambda s, o, g: np.zeros(5), None, "policy_error"),  # wrong action shape
         (None, _raising_sampler, "sampler_error"),
         (None, _nan_sampler, "sampler_nonfinite"),
+        (None, _refusing_sampler, "no_subgoal"),  # a sampler's refusal: no simulation
     ],
 )
 def test_misbehaving_policy_or_sampler_fails_its_sample_without_crashing(policy, sampler, reason):
