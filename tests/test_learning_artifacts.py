@@ -3,6 +3,7 @@
 import dataclasses
 import json
 import os
+import re
 import stat
 
 import numpy as np
@@ -121,6 +122,8 @@ def test_describe_lists_every_operator(skills):
     assert text.startswith("2 skills learned from 30 demonstrations")
     assert "Holding(?block0:block, ?robot0:robot)    [60 segments, horizon " in text
     assert "add: Covers(?block0, ?target0), HandEmpty(?robot0)" in text
+    # the pick takes the block's place as given and names the range it was shown
+    assert re.search(r"starts with: \?block0\.x in \[[-0-9.e]+, [-0-9.e]+\]", text)
 
 
 def test_skills_saved_with_index_names_before_readable_names_still_load(skills, tmp_path):

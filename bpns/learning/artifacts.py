@@ -420,4 +420,24 @@ def describe(skills: LearnedSkills) -> str:
             first, _, rest = header.partition("\n")
             header = f"{first}    [{', '.join(extra)}]\n{rest}"
         lines.append(header)
+        if isinstance(skill.sampler, LearnedSampler) and skill.sampler.novelty is not None:
+            lines.append(_starts(skill))
     return "\n".join(lines)
+
+
+def _starts(skill: Skill) -> str:
+    """The context a learned sampler accepts (samplers.Novelty), e.g.
+    ``starts with: ?button0.x in [0.21, 0.74]``; outside it the sampler refuses."""
+    sampler = skill.sampler
+    novelty = sampler.novelty
+    params = skill.operator.parameters
+    names = [
+        f"{params[i].name}.{f}"
+        for i in sampler.dims.scope_indices(len(params))
+        for f in params[i].type.feature_names
+    ]
+    ranges = [
+        f"{names[sampler.dims.state_dims[j]]} in [{lo:.3g}, {hi:.3g}]"
+        for j, lo, hi in zip(novelty.dims, novelty.low, novelty.high, strict=True)
+    ]
+    return "    starts with: " + (", ".join(ranges) if ranges else "(any context)")
