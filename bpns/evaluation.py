@@ -26,8 +26,8 @@ import numpy as np
 from bpns.abstraction import abstract
 from bpns.approaches import Approach, get_approach
 from bpns.approaches import NoOracleSkillsError as NoOracleSkillsError  # re-exported
-from bpns.environment import Environment
-from bpns.perturbations import NOMINAL, Perturbation, perturbed
+from bpns.environment import Environment, perturbed
+from bpns.perturbations import NOMINAL, Perturbation
 from bpns.planning.config import PlanningConfig
 from bpns.pools import make_pool
 from bpns.rollouts import Rollout

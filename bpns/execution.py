@@ -23,9 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from bpns.abstraction import object_tuples
-from bpns.environment import Environment
+from bpns.environment import Environment, observation_of
 from bpns.failures import FailureReason
-from bpns.perturbations import observation_of
 from bpns.structs import GroundAtom, GroundOperator, Object, Skill, State, Task
 
 

@@ -10,10 +10,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bpns.atomic import atomic_path
-from bpns.environment import Environment
+from bpns.environment import Environment, perturbed
 from bpns.evaluation import EvalReport, TaskOutcome, save_plans
 from bpns.failures import MEANING
-from bpns.perturbations import Perturbation, perturbed
+from bpns.perturbations import Perturbation
 from bpns.pools import make_pool
 from bpns.registry import make_environment
 from bpns.rollout_files import demonstration_of, rollouts_name, save_rollouts

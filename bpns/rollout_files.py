@@ -26,9 +26,9 @@ import numpy as np
 
 from bpns.datasets import DatasetError, load_demonstrations, read_attributes, write_demonstrations
 from bpns.demos import ReplayReport, replay
-from bpns.environment import Environment
+from bpns.environment import Environment, perturbed
 from bpns.evaluation import EvalReport, TaskOutcome
-from bpns.perturbations import Perturbation, PerturbationError, perturbed
+from bpns.perturbations import Perturbation, PerturbationError
 from bpns.rollouts import PlanStep, Rollout
 from bpns.structs import Demonstration, Task
 

@@ -273,6 +273,28 @@ def test_optional_declarations_made_the_old_way_are_refused_with_the_fix_named()
     assert "capabilities = Capabilities(planning_defaults=...)" in v
 
 
+class OldStylePhysics(CoverEnv):
+    """Offers perturbed physics as methods of its own, as ``MujocoEnv`` did before."""
+
+    def perturbed(self, spec):
+        return self
+
+    def observe(self, state):
+        return state
+
+
+def test_perturbation_methods_made_the_old_way_are_refused_with_the_fix_named():
+    (v,) = _violations(OldStylePhysics(), "declarations")
+    assert "declares perturbed, observe as attributes" in v
+    assert "capabilities = Capabilities(perturbed=..., observe=...)" in v
+
+
+def test_every_registered_domain_declares_perturbed_physics_and_observations():
+    for name in environment_names():
+        caps = make_environment(name).capabilities
+        assert caps.perturbed is not None and caps.observe is not None, name
+
+
 class MisspeltDefaults(CoverEnv):
     capabilities = Capabilities(planning_defaults={"n_abstrct": 3})
 

@@ -17,10 +17,9 @@ import numpy as np
 
 from bpns.abstraction import abstract
 from bpns.approaches.base import Approach, Solution, failure
-from bpns.environment import Environment
+from bpns.environment import Environment, observation_of
 from bpns.execution import checked_action
 from bpns.failures import FailureReason
-from bpns.perturbations import observation_of
 from bpns.rollouts import Rollout
 from bpns.structs import State, Task
 
