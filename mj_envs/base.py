@@ -4,7 +4,7 @@ A domain subclass declares its types, predicates (and which are contact-related)
 task's scene and objects are sampled, how features are read from the simulation, and
 optionally when the gripper may act. This base class provides the exact transition
 function ``simulate``, task sampling with seeds, state restoration and action checking.
-It implements :class:`bpns.environment.Environment`.
+It implements :class:`bpns.env.environment.Environment`.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from bpns.environment import Capabilities
-from bpns.perturbations import NOMINAL, Perturbation
+from bpns.env.environment import Capabilities
+from bpns.env.perturbations import NOMINAL, Perturbation
 from bpns.structs import GroundAtom, Object, Predicate, SimState, State, Task, Type
 from ik import ControllerConfig
 from mj_envs.perturbation import noise
@@ -75,7 +75,7 @@ class MujocoEnv(abc.ABC):
     # at 20 Hz a release or touch-down settles within three control steps.
     contact_settle_steps: int = 4
     # Defaults, skills and perturbed physics beyond the required protocol
-    # (bpns.environment.Capabilities); a domain declaring its own names these two again.
+    # (bpns.env.environment.Capabilities); a domain declaring its own names these two again.
     capabilities: Capabilities = Capabilities(perturbed=perturbed, observe=observe)
     # physics the tasks run under (``perturbed``); mj_envs.perturbation says what changes
     perturbation: Perturbation = NOMINAL

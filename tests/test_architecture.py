@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from bpns.registry import GROUP, environment_names
+from bpns.env.registry import GROUP, environment_names
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("bpns", "ik", "mj_envs")

@@ -12,8 +12,8 @@ import pytest
 import mj_envs  # noqa: F401  (registers the Gymnasium ids)
 from bpns.cli import main
 from bpns.contract import ContractConfig, check_environment, run_checks
-from bpns.environment import Capabilities
-from bpns.registry import environment_names, make_environment
+from bpns.env.environment import Capabilities
+from bpns.env.registry import environment_names, make_environment
 from bpns.structs import Predicate
 from mj_envs.base import TaskLayout
 from mj_envs.domains.cover.env import CoverEnv
@@ -314,7 +314,7 @@ def test_capabilities_are_read_only_declarations():
 def test_the_registry_refuses_an_environment_declared_the_old_way(monkeypatch):
     from importlib.metadata import EntryPoint
 
-    import bpns.registry as registry
+    import bpns.env.registry as registry
 
     old = EntryPoint("old_style", f"{__name__}:OldStyle", registry.GROUP)
     monkeypatch.setattr(registry, "entry_points", lambda group: [old])

@@ -7,8 +7,8 @@ import pickle
 import pytest
 
 import mj_envs  # noqa: F401  (selects the GL backend before mujoco loads)
-from bpns.registry import environment_names
-from bpns.registry import make_environment as make_env
+from bpns.env.registry import environment_names
+from bpns.env.registry import make_environment as make_env
 
 
 @pytest.mark.parametrize("name", environment_names())

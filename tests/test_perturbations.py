@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bpns.abstraction import abstract
-from bpns.environment import Capabilities, observation_of, perturbed
-from bpns.perturbations import (
+from bpns.env.abstraction import abstract
+from bpns.env.environment import Capabilities, observation_of, perturbed
+from bpns.env.perturbations import (
     NOMINAL,
     Perturbation,
     PerturbationError,

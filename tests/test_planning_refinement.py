@@ -3,7 +3,7 @@ import time
 import numpy as np
 import pytest
 
-from bpns.abstraction import abstract
+from bpns.env.abstraction import abstract
 from bpns.planning.config import PlanningConfig
 from bpns.planning.refinement import refine
 from bpns.planning.search import AbstractPlan

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Collection, Iterable
 
-from bpns.abstraction import abstract
+from bpns.env.abstraction import abstract
 from bpns.structs import Demonstration, GroundAtom, Predicate, Segment
 
 

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.environment import Capabilities
+from bpns.env.environment import Capabilities
 from bpns.structs import (
     GroundAtom,
     LiftedAtom,

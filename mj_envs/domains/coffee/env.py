@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.environment import Capabilities
+from bpns.env.environment import Capabilities
 from bpns.structs import Object, Predicate, State, Task, Type
 from ik.orientation import rotation_delta, yaw_tilt_from_matrix
 from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed

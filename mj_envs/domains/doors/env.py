@@ -60,7 +60,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.environment import Capabilities
+from bpns.env.environment import Capabilities
 from bpns.structs import GroundAtom, Object, Predicate, Task, Type
 from ik import ControllerConfig
 from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.environment import Capabilities
+from bpns.env.environment import Capabilities
 from bpns.structs import Object, Predicate, Task, Type
 from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed
 from mj_envs.domains.stick_button import scene

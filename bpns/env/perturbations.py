@@ -2,7 +2,7 @@
 
 bpns only carries the spec; the environment implements it (its declared
 ``Capabilities.perturbed`` returns the same environment with perturbed physics, applied
-through ``bpns.environment.perturbed``; ``mj_envs`` documents what each one changes in
+through ``bpns.env.environment.perturbed``; ``mj_envs`` documents what each one changes in
 MuJoCo). The spec is stored in every rollouts file, so a perturbed
 rollout replays and renders exactly.
 

@@ -18,7 +18,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from bpns.perturbations import Perturbation, PerturbationError
+from bpns.env.perturbations import Perturbation, PerturbationError
 from bpns.structs import GivenSkill, Predicate, Skill, State, Task, Type
 
 
@@ -39,11 +39,11 @@ class Capabilities:
     given_skills:      makes the skills learning keeps as given (``bpns.learning.given``);
                        None: every skill is learned.
     demo_noise:        DART noise scale of the scripted demonstrations
-                       (``bpns.demo_attempts.ActionNoise``); 0.0: plain demonstrations.
+                       (``bpns.data.demo_attempts.ActionNoise``); 0.0: plain demonstrations.
     default_camera:    the camera videos use unless told (e.g. one that follows a mobile
                        robot, which leaves a fixed camera's view).
     perturbed:         ``perturbed(env, spec)``: ``env`` under a
-                       ``bpns.perturbations.Perturbation`` (``bpns eval --perturb``);
+                       ``bpns.env.perturbations.Perturbation`` (``bpns eval --perturb``);
                        None: nominal physics only.
     observe:           ``observe(env, state)``: what the skills' policies see of a state
                        (e.g. noisy features); None: the state itself.
@@ -94,17 +94,17 @@ def declaration_problem(env: object) -> str | None:
         fields = ", ".join(f"{a}=..." for a in moved)
         return (
             f"environment {name!r} declares {', '.join(moved)} as attributes: declare "
-            f"`capabilities = Capabilities({fields})` (bpns.environment) instead; "
+            f"`capabilities = Capabilities({fields})` (bpns.env.environment) instead; "
             "see docs/NEW_TASK.md"
         )
     missing = [a for a in ("capabilities", "contact_settle_steps") if not hasattr(env, a)]
     if missing:
         return (
-            f"environment {name!r} lacks {', '.join(missing)} of bpns.environment.Environment "
+            f"environment {name!r} lacks {', '.join(missing)} of bpns.env.environment.Environment "
             "(MujocoEnv provides both); see docs/NEW_TASK.md"
         )
     if not isinstance(env.capabilities, Capabilities):  # type: ignore[attr-defined]
-        return f"environment {name!r}: capabilities must be a bpns.environment.Capabilities"
+        return f"environment {name!r}: capabilities must be a bpns.env.environment.Capabilities"
     return None
 
 
