@@ -89,7 +89,8 @@ class NominalOnlyCover(CoverEnv):
 def test_an_environment_declaring_no_perturbed_physics_refuses_a_perturbation():
     env = NominalOnlyCover()
     assert perturbed(env, NOMINAL) is env  # nominal physics needs no declaration
-    with pytest.raises(PerturbationError, match="'cover' does not support perturbations"):
+    refused = r"'cover' does not support perturbations \(its Capabilities declare no perturbed"
+    with pytest.raises(PerturbationError, match=refused):
         perturbed(env, Perturbation(mass_scale=2.0))
     state = env.task(0, 7, True).init
     assert observation_of(env)(state) is state  # no declared observation: the state itself

@@ -186,7 +186,10 @@ def perturbed(env: Environment, spec: Perturbation) -> Environment:
         return env
     make = env.capabilities.perturbed
     if make is None:
-        raise PerturbationError(f"environment {env.name!r} does not support perturbations")
+        raise PerturbationError(
+            f"environment {env.name!r} does not support perturbations "
+            "(its Capabilities declare no perturbed)"
+        )
     return make(env, spec)
 
 
