@@ -289,12 +289,6 @@ def test_perturbation_methods_made_the_old_way_are_refused_with_the_fix_named():
     assert "capabilities = Capabilities(perturbed=..., observe=...)" in v
 
 
-def test_every_registered_domain_declares_perturbed_physics_and_observations():
-    for name in environment_names():
-        caps = make_environment(name).capabilities
-        assert caps.perturbed is not None and caps.observe is not None, name
-
-
 class MisspeltDefaults(CoverEnv):
     capabilities = Capabilities(planning_defaults={"n_abstrct": 3})
 
