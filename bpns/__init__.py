@@ -35,20 +35,20 @@ from bpns.structs import (
 
 if TYPE_CHECKING:
     from bpns.approaches import Approach, ApproachEntry, Solution, approach_names, get_approach
-    from bpns.environment import Capabilities, Environment
-    from bpns.evaluation import EvalSpec, evaluate
-    from bpns.failures import FailureReason
+    from bpns.env.environment import Capabilities, Environment
+    from bpns.env.registry import environment_names, make_environment
+    from bpns.evaluation.evaluate import EvalSpec, evaluate
+    from bpns.execution.failures import FailureReason
     from bpns.learning import LearnedSkills, LearningConfig, learn_skills
     from bpns.learning.artifacts import load_skills, save_skills
     from bpns.planning import PlanningConfig, PlanResult, plan
-    from bpns.registry import environment_names, make_environment
 
 # public name -> module that defines it
 _LAZY = {
-    "make_environment": "bpns.registry",
-    "environment_names": "bpns.registry",
-    "Environment": "bpns.environment",
-    "Capabilities": "bpns.environment",
+    "make_environment": "bpns.env.registry",
+    "environment_names": "bpns.env.registry",
+    "Environment": "bpns.env.environment",
+    "Capabilities": "bpns.env.environment",
     "learn_skills": "bpns.learning",
     "LearnedSkills": "bpns.learning",
     "LearningConfig": "bpns.learning",
@@ -57,14 +57,14 @@ _LAZY = {
     "plan": "bpns.planning",
     "PlanResult": "bpns.planning",
     "PlanningConfig": "bpns.planning",
-    "evaluate": "bpns.evaluation",
-    "EvalSpec": "bpns.evaluation",
+    "evaluate": "bpns.evaluation.evaluate",
+    "EvalSpec": "bpns.evaluation.evaluate",
     "Approach": "bpns.approaches",
     "ApproachEntry": "bpns.approaches",
     "Solution": "bpns.approaches",
     "get_approach": "bpns.approaches",
     "approach_names": "bpns.approaches",
-    "FailureReason": "bpns.failures",
+    "FailureReason": "bpns.execution.failures",
 }
 
 

@@ -1,6 +1,6 @@
 """Check that an environment keeps the contract bpns relies on (``bpns check-env``).
 
-Each check exercises one promise of :class:`bpns.environment.Environment` the way the
+Each check exercises one promise of :class:`bpns.env.environment.Environment` the way the
 rest of bpns uses it (seeded task streams, workers that rebuild environments by name and
 receive pickled tasks, exact re-simulation, predicates evaluated on every state, saved
 demonstrations that replay) and reports a broken promise as one :class:`Violation`.
@@ -20,13 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
-from bpns.datasets import load_demonstrations, save_demonstrations
-from bpns.demo_attempts import attempt_demonstration
-from bpns.demos import replay
-from bpns.environment import Environment, declaration_problem
+from bpns.data.datasets import load_demonstrations, save_demonstrations
+from bpns.data.demo_attempts import attempt_demonstration
+from bpns.data.demos import replay
+from bpns.env.environment import Environment, declaration_problem
+from bpns.env.registry import GROUP
 from bpns.learning.config import learning_config_for
 from bpns.planning.config import planning_config_for
-from bpns.registry import GROUP
 from bpns.structs import Demonstration, Object, Predicate, State, Task
 
 

@@ -331,7 +331,7 @@ class Demonstration:
 
     ``expert_actions`` (same shape as ``actions``) are what the demonstrator commanded
     when the executed ``actions`` were perturbed on purpose (DART-style noise injection,
-    :mod:`bpns.demo_attempts`); None when they are the executed ones. Replay uses
+    :mod:`bpns.data.demo_attempts`); None when they are the executed ones. Replay uses
     ``actions``; imitation learns ``labels``: the demonstrator's correction at every
     visited state, including the ones off its own path.
     """

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
 
-from bpns.demos import ReplayReport
-from bpns.environment import Environment
+from bpns.data.demos import ReplayReport
+from bpns.env.environment import Environment
 
 if TYPE_CHECKING:
     from bpns.approaches.base import ApproachEntry
@@ -71,11 +71,11 @@ def collect_demos(
 ) -> DemosWritten:
     """Run the scripted demonstrator on train tasks 0..num-1 and save the successes; say
     why each failure failed (with ``debug``: its traceback and last abstract states).
-    ``noise``: DART noise scale (:class:`bpns.demo_attempts.ActionNoise`); None: the
+    ``noise``: DART noise scale (:class:`bpns.data.demo_attempts.ActionNoise`); None: the
     environment's declared one."""
-    from bpns.datasets import save_demonstrations
-    from bpns.demo_attempts import demo_noise_of
-    from bpns.demos import collect_attempts
+    from bpns.data.datasets import save_demonstrations
+    from bpns.data.demo_attempts import demo_noise_of
+    from bpns.data.demos import collect_attempts
 
     failed: list[int] = []
     why: list[str] = []
@@ -135,9 +135,9 @@ def check_replay(
     env: Environment, path: Path, limit: int | None = None, progress: Progress = _no_progress
 ) -> ReplayCheck:
     """Re-simulate the first ``limit`` (default: all) demonstrations of ``path``.
-    Raises ``bpns.datasets.DatasetError`` for a file that is not a readable dataset."""
-    from bpns.datasets import count_demonstrations, iter_demonstrations
-    from bpns.demos import replay
+    Raises ``bpns.data.datasets.DatasetError`` for a file that is not a readable dataset."""
+    from bpns.data.datasets import count_demonstrations, iter_demonstrations
+    from bpns.data.demos import replay
 
     total = count_demonstrations(path)
     n = min(total, limit or total)
@@ -201,9 +201,9 @@ def learn_to_directory(
     ``demos_path`` and save them to ``out`` (replacing it); with ``baselines`` also the
     paper's baselines from the same demonstrations, saved beside them
     (:mod:`bpns.learning.baselines`).
-    Raises ``bpns.datasets.DatasetError`` for a bad
+    Raises ``bpns.data.datasets.DatasetError`` for a bad
     file and :class:`CannotLearnError` when the demos cannot be learned from."""
-    from bpns.datasets import count_demonstrations, iter_demonstrations
+    from bpns.data.datasets import count_demonstrations, iter_demonstrations
     from bpns.learning import learn_skills, save_skills
     from bpns.learning.given import given_skills_of
 

@@ -4,7 +4,7 @@ A domain subclass declares its types, predicates (and which are contact-related)
 task's scene and objects are sampled, how features are read from the simulation, and
 optionally when the gripper may act. This base class provides the exact transition
 function ``simulate``, task sampling with seeds, state restoration and action checking.
-It implements :class:`bpns.environment.Environment`.
+It implements :class:`bpns.env.environment.Environment`.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from bpns.environment import Capabilities
-from bpns.perturbations import NOMINAL, Perturbation
+from bpns.env.environment import Capabilities
+from bpns.env.perturbations import NOMINAL, Perturbation
 from bpns.structs import GroundAtom, Object, Predicate, SimState, State, Task, Type
 from ik import ControllerConfig
 from mj_envs.perturbation import noise
@@ -43,6 +43,28 @@ class TaskLayout:
     init_userdata: dict[int, float] | None = None  # domain userdata index -> value
 
 
+def perturbed(env: MujocoEnv, spec: Perturbation) -> MujocoEnv:
+    """``env`` with ``spec``'s physics: every task's world (sampled or loaded) gets the
+    perturbed model, and ``simulate`` the noise and latency (``Capabilities.perturbed``)."""
+    out = copy.copy(env)
+    out.perturbation = spec
+    return out
+
+
+def observe(env: MujocoEnv, state: State) -> State:
+    """What the skills' policies see of ``state``: its features plus the perturbation's
+    observation noise, the state itself when there is none (``Capabilities.observe``)."""
+    p = env.perturbation
+    if not p.obs_noise or state.sim is None:
+        return state
+    world = state.sim.world
+    step = env._control_step(float(state.sim.flat[0]))  # mjSTATE_TIME comes first
+    sizes = [v.size for v in state.data.values()]
+    kicks = np.split(p.obs_noise * noise(p, 1, world.key, step, sum(sizes)), np.cumsum(sizes))
+    seen = {o: v + k for (o, v), k in zip(state.data.items(), kicks, strict=False)}
+    return State(seen, state.sim)
+
+
 class MujocoEnv(abc.ABC):
     """Base for the Panda-on-a-table domains."""
 
@@ -52,8 +74,9 @@ class MujocoEnv(abc.ABC):
     # Segmentation merges contact changes closer than this (bpns.learning.segmentation):
     # at 20 Hz a release or touch-down settles within three control steps.
     contact_settle_steps: int = 4
-    # Defaults and skills beyond the required protocol (bpns.environment.Capabilities).
-    capabilities: Capabilities = Capabilities()
+    # Defaults, skills and perturbed physics beyond the required protocol
+    # (bpns.env.environment.Capabilities); a domain declaring its own names these two again.
+    capabilities: Capabilities = Capabilities(perturbed=perturbed, observe=observe)
     # physics the tasks run under (``perturbed``); mj_envs.perturbation says what changes
     perturbation: Perturbation = NOMINAL
 
@@ -152,14 +175,7 @@ class MujocoEnv(abc.ABC):
             self.__dict__["_max_objects"] = cached
         return dict(cached)
 
-    # -- perturbed physics ------------------------------------------------------------
-    def perturbed(self, spec: Perturbation) -> MujocoEnv:
-        """This environment with ``spec``'s physics: every task's world (sampled or
-        loaded) gets the perturbed model, and ``simulate`` the noise and latency."""
-        env = copy.copy(self)
-        env.perturbation = spec
-        return env
-
+    # -- perturbed physics (declared as Capabilities.perturbed / .observe) -------------
     def _world(self, xml: str) -> World:
         p = self.perturbation
         return World.from_xml(
@@ -184,19 +200,6 @@ class MujocoEnv(abc.ABC):
             world.data.userdata[world.queue] = np.concatenate([queue[1:].ravel(), action])
             action = out
         return action
-
-    def observe(self, state: State) -> State:
-        """What the skills' policies see of ``state``: its features plus the
-        perturbation's observation noise (the state itself when there is none)."""
-        p = self.perturbation
-        if not p.obs_noise or state.sim is None:
-            return state
-        world = state.sim.world
-        step = self._control_step(float(state.sim.flat[0]))  # mjSTATE_TIME comes first
-        sizes = [v.size for v in state.data.values()]
-        kicks = np.split(p.obs_noise * noise(p, 1, world.key, step, sum(sizes)), np.cumsum(sizes))
-        seen = {o: v + k for (o, v), k in zip(state.data.items(), kicks, strict=False)}
-        return State(seen, state.sim)
 
     # -- tasks ----------------------------------------------------------------------
     def train_tasks(self, n: int, seed: int) -> list[Task]:

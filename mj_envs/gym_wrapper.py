@@ -19,9 +19,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from bpns.abstraction import abstract
-from bpns.environment import Environment
-from bpns.registry import environment_names, make_environment
+from bpns.env.abstraction import abstract
+from bpns.env.environment import Environment
+from bpns.env.registry import environment_names, make_environment
 from bpns.structs import State, Task
 
 NAMESPACE = "bpns"

@@ -1,4 +1,4 @@
-"""What each :class:`bpns.perturbations.Perturbation` changes in MuJoCo.
+"""What each :class:`bpns.env.perturbations.Perturbation` changes in MuJoCo.
 
 Model edits, made once on each task's compiled model (the MJCF text, which datasets
 store, stays the nominal one; the perturbation is stored beside it):
@@ -29,7 +29,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from bpns.perturbations import Perturbation
+from bpns.env.perturbations import Perturbation
 from mj_envs.robots.panda import Robot
 
 

@@ -13,8 +13,8 @@ from collections.abc import Callable, Iterator, Sequence
 import mujoco
 import numpy as np
 
+from bpns.execution.video import draw_caption
 from bpns.structs import State
-from bpns.video import draw_caption
 from mj_envs.gl import OSMESA_HINT, osmesa_available
 from mj_envs.robots.panda_looks import RenderModel, dressed_model
 from mj_envs.world import STATE_SPEC, World

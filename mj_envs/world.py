@@ -17,7 +17,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from bpns.perturbations import NOMINAL, Perturbation
+from bpns.env.perturbations import NOMINAL, Perturbation
 from ik import ControllerConfig, EndEffectorController
 from mj_envs.mjcf_safety import check_mjcf
 from mj_envs.perturbation import apply_to_model

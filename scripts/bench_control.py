@@ -22,7 +22,7 @@ import mujoco
 import numpy as np
 
 import mj_envs  # noqa: F401
-from bpns.registry import make_environment as make_env
+from bpns.env.registry import make_environment as make_env
 from mj_envs.world import POSE_SLICE
 
 

@@ -29,8 +29,8 @@ from pathlib import Path
 
 import h5py
 
-from bpns.datasets import count_demonstrations, iter_demonstrations
-from bpns.registry import make_environment
+from bpns.data.datasets import count_demonstrations, iter_demonstrations
+from bpns.env.registry import make_environment
 
 
 def raw_read(path: Path, n: int) -> int:

@@ -55,8 +55,8 @@ def main() -> int:
     parser.add_argument("--workers", type=int, default=1)
     args = parser.parse_args()
 
-    from bpns.evaluation import EvalSpec, evaluate, markdown_table
-    from bpns.learned import load_learned
+    from bpns.evaluation.evaluate import EvalSpec, evaluate, markdown_table
+    from bpns.learning.learned import load_learned
     from bpns.planning.config import planning_config_for
 
     with tempfile.TemporaryDirectory() as tmp:

@@ -3,7 +3,7 @@
     python scripts/demonstrator_success.py --env doors -n 100 --seed 11 [--train]
 
 ``bpns demos`` collects train tasks only; this also runs the demonstrator on the eval
-stream (same code path: ``bpns.demos.run_demonstrator``) and prints the success count and
+stream (same code path: ``bpns.data.demos.run_demonstrator``) and prints the success count and
 the demonstrations' lengths.
 """
 
@@ -14,8 +14,8 @@ import time
 
 import numpy as np
 
-from bpns.demos import run_demonstrator
-from bpns.registry import make_environment
+from bpns.data.demos import run_demonstrator
+from bpns.env.registry import make_environment
 
 
 def main() -> None:

@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def oracle_rate(env_name: str, n: int, seed: int, train: bool, workers: int) -> tuple[int, float]:
-    from bpns.demos import collect_demonstrations
+    from bpns.data.demos import collect_demonstrations
 
     t0 = time.perf_counter()
     ok = sum(d is not None for _, d in collect_demonstrations(env_name, n, seed, workers, train))
@@ -41,9 +41,9 @@ def oracle_rate(env_name: str, n: int, seed: int, train: bool, workers: int) -> 
 
 
 def replay_check(env_name: str, n: int, seed: int, workers: int) -> dict:
-    from bpns.datasets import load_demonstrations, save_demonstrations
-    from bpns.demos import collect_demonstrations, replay
-    from bpns.registry import make_environment
+    from bpns.data.datasets import load_demonstrations, save_demonstrations
+    from bpns.data.demos import collect_demonstrations, replay
+    from bpns.env.registry import make_environment
 
     env = make_environment(env_name)
     with tempfile.TemporaryDirectory() as tmp:
@@ -104,7 +104,7 @@ def main() -> None:
     args.work = args.work or ROOT / "outputs" / "results" / args.env
 
     import mj_envs  # noqa: F401
-    from bpns.registry import make_environment
+    from bpns.env.registry import make_environment
 
     title = make_environment(args.env).__class__.__doc__ or ""
     name = args.env.replace("_", " ").title()
@@ -315,7 +315,7 @@ def bpns(*argv: str) -> str:
 
 def learning_results(args, name: str) -> list[str]:
     from bpns.approaches import get_approach
-    from bpns.evaluation import TABLE_HEADER
+    from bpns.evaluation.evaluate import TABLE_HEADER
 
     work = args.work
     work.mkdir(parents=True, exist_ok=True)

@@ -5,7 +5,7 @@
 For every segment of the held-out demonstrations ``DEMOS[first : first + count]`` (not
 used for learning when ``first`` is past ``bpns learn --limit``) that a learned skill
 explains, the skill is rolled out from the segment's exact first simulator state with
-the planner's own rollout (:class:`bpns.execution.SkillExecutor`, the completion test
+the planner's own rollout (:class:`bpns.execution.executor.SkillExecutor`, the completion test
 refinement uses) in three ways:
 
 - ``demo subgoal``: the policy towards the subgoal the demonstration reached. Failures
@@ -15,7 +15,7 @@ refinement uses) in three ways:
 - ``steps``: simulated steps per successful rollout against the demonstrated segment's
   length (a skill that dawdles costs planning time even when it succeeds).
 
-Failure reasons are the planner's (``bpns.failures``). Nothing is written; the table
+Failure reasons are the planner's (``bpns.execution.failures``). Nothing is written; the table
 goes to stdout. The environment is the one the skills directory records.
 """
 
@@ -27,11 +27,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bpns.datasets import iter_demonstrations
-from bpns.execution import Executed, RolloutConfig, SkillExecutor, completion_test
-from bpns.learned import load_learned
+from bpns.data.datasets import iter_demonstrations
+from bpns.execution.executor import Executed, RolloutConfig, SkillExecutor, completion_test
 from bpns.learning.config import learning_config_for
 from bpns.learning.gnn_meta import label_segment
+from bpns.learning.learned import load_learned
 from bpns.learning.segmentation import segment_demonstration
 from bpns.planning.config import planning_config_for
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import mj_envs  # noqa: F401  (selects the GL backend before mujoco loads)
-from bpns.demos import run_demonstrator
-from bpns.registry import make_environment as make_env
+from bpns.data.demos import run_demonstrator
+from bpns.env.registry import make_environment as make_env
 
 
 @pytest.fixture(scope="session")
@@ -30,7 +30,7 @@ def rng():
 @pytest.fixture(scope="session")
 def cover_demo_file(tmp_path_factory, cover_env, cover_demos):
     """A valid 2-demo Cover file, written once per session (copy it before mutating)."""
-    from bpns.datasets import save_demonstrations
+    from bpns.data.datasets import save_demonstrations
 
     path = tmp_path_factory.mktemp("demos") / "cover2.h5"
     save_demonstrations(path, cover_env, cover_demos[:2])

@@ -8,20 +8,20 @@ import json
 import numpy as np
 import pytest
 
-from bpns.abstraction import abstract
 from bpns.approaches import Solution, UnknownApproachError, approach_names, get_approach
 from bpns.approaches.base import ApproachEntry
 from bpns.approaches.metacontroller import Metacontroller, SkillChoice
 from bpns.approaches.policy import ClosedLoopPolicy
-from bpns.evaluation import plan_reaches_goal, solve_task
-from bpns.execution import (
+from bpns.env.abstraction import abstract
+from bpns.evaluation.evaluate import plan_reaches_goal, solve_task
+from bpns.execution.executor import (
     Executed,
     RolloutConfig,
     SkillExecutor,
     completion_test,
     expected_after,
 )
-from bpns.failures import FailureReason
+from bpns.execution.failures import FailureReason
 from bpns.planning.config import PlanningConfig
 from tests import toy_planning as toy
 

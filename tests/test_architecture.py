@@ -2,6 +2,9 @@
 
 * No import cycles among the project's modules, counting imports inside functions too
   (a lazy import that closes a cycle still ties the modules together).
+* ``bpns``'s packages (env, data, learning, execution, planning, approaches,
+  evaluation, ...) import each other in one direction, and the environment contract
+  (``bpns.env``) depends on nothing but the core structs.
 * ``bpns`` is environment-agnostic: it imports nothing from ``mj_envs``, ``ik`` or
   ``mujoco``, and no ``bpns`` module names a domain.
 * Inside a domain package, the demonstrator and the oracle skills depend on the
@@ -18,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from bpns.registry import GROUP, environment_names
+from bpns.env.registry import GROUP, environment_names
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("bpns", "ik", "mj_envs")
@@ -120,6 +123,33 @@ def _cycles(edges: dict[str, set[str]]) -> list[list[str]]:
 
 def test_no_module_imports_another_in_a_cycle_even_lazily():
     assert _cycles(_project_edges()) == []
+
+
+def _bpns_package_edges() -> dict[str, set[str]]:
+    """Imports between ``bpns``'s packages and top-level modules (``bpns.env``,
+    ``bpns.structs`` ...): module edges collapsed into the unit each module belongs to."""
+
+    def unit(module: str) -> str | None:
+        parts = module.split(".")
+        return ".".join(parts[:2]) if parts[0] == "bpns" and len(parts) > 1 else None
+
+    edges: dict[str, set[str]] = {}
+    for name, targets in _project_edges().items():
+        if (u := unit(name)) is not None:
+            edges.setdefault(u, set()).update(
+                t for t in map(unit, targets) if t is not None and t != u
+            )
+    return edges
+
+
+def test_bpns_packages_import_each_other_in_one_direction():
+    edges = _bpns_package_edges()
+    assert {"bpns.env", "bpns.data", "bpns.execution", "bpns.evaluation"} <= set(edges)
+    assert _cycles(edges) == []
+
+
+def test_the_environment_contract_depends_on_nothing_but_the_core_structs():
+    assert _bpns_package_edges()["bpns.env"] == {"bpns.structs"}
 
 
 def test_cycle_finder_finds_a_planted_cycle():

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from bpns.abstraction import abstract
 from bpns.approaches.baselines import META_SAMPLES, GNNBehaviourCloning, GNNMeta
-from bpns.failures import FailureReason
+from bpns.env.abstraction import abstract
+from bpns.execution.failures import FailureReason
 from bpns.planning.config import PlanningConfig
 from tests import toy_gnn
 from tests import toy_learning as toy

@@ -15,7 +15,7 @@ from bpns.cli.paths import capped_to_cores, usable_cores
 
 @pytest.fixture(scope="module")
 def demo_file(tmp_path_factory, cover_env, cover_demos):
-    from bpns.datasets import save_demonstrations
+    from bpns.data.datasets import save_demonstrations
 
     path = tmp_path_factory.mktemp("probes") / "d.h5"
     save_demonstrations(path, cover_env, cover_demos[:1])

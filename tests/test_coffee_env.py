@@ -9,11 +9,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bpns.abstraction import abstract
 from bpns.approaches.bilevel import oracle_skills
-from bpns.datasets import load_demonstrations, save_demonstrations
-from bpns.demos import replay, run_demonstrator
-from bpns.registry import make_environment as make_env
+from bpns.data.datasets import load_demonstrations, save_demonstrations
+from bpns.data.demos import replay, run_demonstrator
+from bpns.env.abstraction import abstract
+from bpns.env.registry import make_environment as make_env
 from bpns.structs import Object, State, Task
 from mj_envs.base import InvalidActionError
 from mj_envs.domains.coffee.behaviours import (

@@ -12,8 +12,8 @@ import pytest
 import mj_envs  # noqa: F401  (registers the Gymnasium ids)
 from bpns.cli import main
 from bpns.contract import ContractConfig, check_environment, run_checks
-from bpns.environment import Capabilities
-from bpns.registry import environment_names, make_environment
+from bpns.env.environment import Capabilities
+from bpns.env.registry import environment_names, make_environment
 from bpns.structs import Predicate
 from mj_envs.base import TaskLayout
 from mj_envs.domains.cover.env import CoverEnv
@@ -273,6 +273,22 @@ def test_optional_declarations_made_the_old_way_are_refused_with_the_fix_named()
     assert "capabilities = Capabilities(planning_defaults=...)" in v
 
 
+class OldStylePhysics(CoverEnv):
+    """Offers perturbed physics as methods of its own, as ``MujocoEnv`` did before."""
+
+    def perturbed(self, spec):
+        return self
+
+    def observe(self, state):
+        return state
+
+
+def test_perturbation_methods_made_the_old_way_are_refused_with_the_fix_named():
+    (v,) = _violations(OldStylePhysics(), "declarations")
+    assert "declares perturbed, observe as attributes" in v
+    assert "capabilities = Capabilities(perturbed=..., observe=...)" in v
+
+
 class MisspeltDefaults(CoverEnv):
     capabilities = Capabilities(planning_defaults={"n_abstrct": 3})
 
@@ -292,7 +308,7 @@ def test_capabilities_are_read_only_declarations():
 def test_the_registry_refuses_an_environment_declared_the_old_way(monkeypatch):
     from importlib.metadata import EntryPoint
 
-    import bpns.registry as registry
+    import bpns.env.registry as registry
 
     old = EntryPoint("old_style", f"{__name__}:OldStyle", registry.GROUP)
     monkeypatch.setattr(registry, "entry_points", lambda group: [old])

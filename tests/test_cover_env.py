@@ -7,7 +7,7 @@ import pickle
 import numpy as np
 import pytest
 
-from bpns.abstraction import abstract
+from bpns.env.abstraction import abstract
 from mj_envs.base import InvalidActionError
 from mj_envs.domains.cover.rules import HOLDING
 

@@ -6,8 +6,8 @@ import time
 
 import numpy as np
 
-from bpns.abstraction import abstract
 from bpns.approaches.bilevel import oracle_skills
+from bpns.env.abstraction import abstract
 from bpns.planning.bilevel import plan
 from bpns.planning.config import PlanningConfig
 

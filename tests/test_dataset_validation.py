@@ -9,8 +9,8 @@ import h5py
 import numpy as np
 import pytest
 
-from bpns.datasets import DatasetError, count_demonstrations, load_demonstrations
-from bpns.demos import replay
+from bpns.data.datasets import DatasetError, count_demonstrations, load_demonstrations
+from bpns.data.demos import replay
 from bpns.structs import Demonstration, SimState, State
 from mj_envs.base import InvalidActionError
 

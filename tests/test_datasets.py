@@ -6,8 +6,8 @@ import h5py
 import numpy as np
 import pytest
 
-from bpns.datasets import DatasetError, load_demonstrations, save_demonstrations
-from bpns.demos import replay
+from bpns.data.datasets import DatasetError, load_demonstrations, save_demonstrations
+from bpns.data.demos import replay
 
 
 def test_saved_demos_replay_exactly_from_their_first_state(tmp_path, cover_env, cover_demos):

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bpns.datasets import load_demonstrations, save_demonstrations
-from bpns.demo_attempts import ActionNoise, attempt_demonstration
-from bpns.demos import replay
+from bpns.data.datasets import load_demonstrations, save_demonstrations
+from bpns.data.demo_attempts import ActionNoise, attempt_demonstration
+from bpns.data.demos import replay
 from bpns.learning.segmentation import segment_demonstration
 from bpns.structs import Demonstration
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bpns.abstraction import abstract
+from bpns.env.abstraction import abstract
 from mj_envs.domains.doors.demonstrator import room_of, room_path
 from mj_envs.domains.doors.env import DoorsEnv
 from mj_envs.domains.doors.motion import BasePlanner, scene_boxes

@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import torch
 
-from bpns.demos import run_demonstrator
+from bpns.data.demos import run_demonstrator
 from bpns.learning.artifacts import load_skills, save_skills
 from bpns.learning.config import MLPConfig, learning_config_for
 from bpns.learning.given import BoundPolicy, given_skills_of

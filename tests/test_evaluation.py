@@ -10,8 +10,8 @@ import pytest
 
 from bpns.approaches import SkillSource, approach_names, get_approach
 from bpns.approaches.bilevel import oracle_skills
-from bpns.environment import Capabilities
-from bpns.evaluation import (
+from bpns.env.environment import Capabilities
+from bpns.evaluation.evaluate import (
     EvalReport,
     TaskOutcome,
     markdown_table,
@@ -119,8 +119,8 @@ def test_environments_declare_planning_defaults_that_cli_settings_override():
 
 
 def test_environments_declare_learning_defaults_that_cli_settings_override():
+    from bpns.env.registry import make_environment as make_env
     from bpns.learning.config import LearningConfig, learning_config_for
-    from bpns.registry import make_environment as make_env
 
     class Plain:
         contact_settle_steps = 1
@@ -141,9 +141,9 @@ def test_failed_tasks_are_explained_step_by_step(cover_env):
     import json
 
     from bpns.approaches.bilevel import BilevelPlanning
-    from bpns.evaluation import EvalReport, solve_task
+    from bpns.evaluation.evaluate import EvalReport, solve_task
+    from bpns.evaluation.reporting import explain_lines
     from bpns.planning.config import PlanningConfig
-    from bpns.reporting import explain_lines
 
     pick, place = oracle_skills(cover_env)
     # a pick that aims 30 cm above the block: the grasp never happens
@@ -164,7 +164,7 @@ def test_failed_tasks_are_explained_step_by_step(cover_env):
 
 
 def test_summary_line_names_the_task_distribution_it_was_measured_on() -> None:
-    from bpns.reporting import solved_line
+    from bpns.evaluation.reporting import solved_line
 
     outcome = TaskOutcome(0, True, 1.0, None, 3, 5, 1, 1, 100, True)
     eval_report = EvalReport("cover", "bpns", "BPNS", PlanningConfig(), (outcome,), 7)

@@ -16,13 +16,13 @@ import pytest
 import torch
 
 import mj_envs  # noqa: F401
-from bpns.datasets import load_demonstrations, save_demonstrations
-from bpns.demos import replay
-from bpns.evaluation import EvalSpec, evaluate
+from bpns.data.datasets import load_demonstrations, save_demonstrations
+from bpns.data.demos import replay
+from bpns.env.registry import environment_names, make_environment
+from bpns.evaluation.evaluate import EvalSpec, evaluate
 from bpns.learning import learn_skills, save_skills
 from bpns.learning.config import learning_config_for
 from bpns.planning.config import planning_config_for
-from bpns.registry import environment_names, make_environment
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "bpns_stack"
 
@@ -44,7 +44,7 @@ def stack():
 
 
 def test_stack_pipeline_demos_replay_learn_eval(stack, tmp_path):
-    from bpns.demo_attempts import attempt_demonstration
+    from bpns.data.demo_attempts import attempt_demonstration
 
     attempts = [attempt_demonstration(stack, stack.task(i, 0, True), [0, i]) for i in range(12)]
     assert all(a.solved for a in attempts), [a.explain() for a in attempts if not a.solved]

@@ -8,12 +8,12 @@ import dataclasses
 import pytest
 
 from bpns.cli import main
+from bpns.env.perturbations import Perturbation
 from bpns.experiments.aggregate import aggregate, markdown_table
 from bpns.experiments.cells import EVAL
 from bpns.experiments.plots import save_figure, success_vs_perturbation
 from bpns.experiments.presets import SweepConfigError
 from bpns.experiments.sweep import sweep_cells
-from bpns.perturbations import Perturbation
 from tests.test_experiments import TINY, _eval_record
 
 BASE = TINY  # the harness tests' sweep: cover, 3 demos, seed 0, bpns + oracle

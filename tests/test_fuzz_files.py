@@ -31,7 +31,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from bpns.datasets import DatasetError, load_demonstrations
+from bpns.data.datasets import DatasetError, load_demonstrations
 from bpns.learning.artifacts import ArtifactError, load_skills, save_skills
 from bpns.learning.policies import LearnedPolicy
 from bpns.learning.samplers import LearnedSampler

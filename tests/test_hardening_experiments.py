@@ -113,12 +113,12 @@ def test_a_finished_cell_whose_artifact_was_deleted_is_refused_before_work(tmp_p
 def test_a_full_disk_stops_the_sweep_with_one_line_keeping_finished_cells(
     tmp_path, cover_env, monkeypatch
 ):
-    import bpns.datasets
+    import bpns.data.datasets
 
     def no_space(*args, **kwargs):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
-    monkeypatch.setattr(bpns.datasets, "save_demonstrations", no_space)
+    monkeypatch.setattr(bpns.data.datasets, "save_demonstrations", no_space)
     cells = sweep_cells(CONFIG, {"cover": cover_env})
     store = CellStore(tmp_path)
     with pytest.raises(CellStoreError) as raised:

@@ -17,7 +17,7 @@ from tests.cli_probe import error_line
 
 @pytest.fixture(scope="module")
 def demo_file(tmp_path_factory, cover_env, cover_demos):
-    from bpns.datasets import save_demonstrations
+    from bpns.data.datasets import save_demonstrations
 
     path = tmp_path_factory.mktemp("messages") / "d.h5"
     save_demonstrations(path, cover_env, cover_demos[:1])

@@ -9,7 +9,7 @@ import pytest
 
 from bpns.approaches import get_approach
 from bpns.cli import main
-from bpns.environment import Capabilities
+from bpns.env.environment import Capabilities
 from bpns.workflow import baselines_needed
 
 ALL = ("bpns", "nosubgoal", "gnn-meta", "gnn-meta-nosubgoal", "gnn-bc")

@@ -15,14 +15,15 @@ import imageio.v2 as imageio
 import numpy as np
 import pytest
 
-from bpns import atomic, video
+from bpns import atomic
 from bpns.cli import main
+from bpns.execution import video
 from tests.cli_probe import error_line
 
 
 @pytest.fixture(scope="module")
 def demo_file(tmp_path_factory, cover_env, cover_demos):
-    from bpns.datasets import save_demonstrations
+    from bpns.data.datasets import save_demonstrations
 
     path = tmp_path_factory.mktemp("writes") / "d.h5"
     save_demonstrations(path, cover_env, cover_demos[:2])
@@ -196,8 +197,8 @@ def test_the_next_write_removes_temporaries_of_writers_that_died(tmp_path):
 
 
 def test_saving_skills_removes_the_directory_a_killed_save_left(tmp_path, skills_dir):
-    from bpns.learned import load_learned
     from bpns.learning.artifacts import save_skills
+    from bpns.learning.learned import load_learned
 
     host = atomic.temporary_prefix(tmp_path / "sk").split("-")[2]
     leftover = tmp_path / f".sk.tmp-{_dead_pid()}-{host}-xyz"

@@ -10,7 +10,7 @@ import zipfile
 import numpy as np
 import pytest
 
-from bpns.abstraction import abstract
+from bpns.env.abstraction import abstract
 from bpns.learning.artifacts import ArtifactError
 from bpns.learning.baselines import (
     BaselinesConfig,

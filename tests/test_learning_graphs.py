@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bpns.abstraction import abstract
+from bpns.env.abstraction import abstract
 from bpns.learning.graphs import GraphVocabulary, VocabularyError, batch_graphs, encode_graph
 from bpns.structs import GroundAtom, Object, Predicate, State, Type
 from tests import toy_learning as toy

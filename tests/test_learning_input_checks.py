@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from bpns.evaluation import EvalReport, TaskOutcome
+from bpns.evaluation.evaluate import EvalReport, TaskOutcome
 from bpns.learning.artifacts import save_skills
 from bpns.learning.config import LearningConfig, MLPConfig
 from bpns.learning.demo_checks import DemonstrationError

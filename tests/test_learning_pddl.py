@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from bpns.pddl import domain_pddl, pddl_name, problem_pddl, task_problem_pddl
+from bpns.learning.pddl import domain_pddl, pddl_name, problem_pddl, task_problem_pddl
 from bpns.structs import (
     GroundAtom,
     LiftedAtom,

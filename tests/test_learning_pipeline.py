@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import torch
 
-from bpns.abstraction import abstract
+from bpns.env.abstraction import abstract
 from bpns.learning.pipeline import derive_seed, learn_skills
 from bpns.learning.samplers import CurrentStateSampler, LearnedSampler
 from tests import toy_learning as toy

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from bpns.failures import NoSubgoal
+from bpns.execution.failures import NoSubgoal
 from bpns.learning.config import LearningConfig, MLPConfig
 from bpns.learning.mlp import MLPParams
 from bpns.learning.operators import SkillDataset, learn_operators

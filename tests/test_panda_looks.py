@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from bpns.registry import make_environment
+from bpns.env.registry import make_environment
 from mj_envs.robots import panda_looks
 from mj_envs.robots.panda import ik_model
 from mj_envs.robots.panda_looks import (

@@ -6,15 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bpns.abstraction import abstract
-from bpns.perturbations import (
+from bpns.env.abstraction import abstract
+from bpns.env.environment import Capabilities, observation_of, perturbed
+from bpns.env.perturbations import (
     NOMINAL,
     Perturbation,
     PerturbationError,
     parse_axis,
     parse_perturbation,
-    perturbed,
 )
+from mj_envs.domains.cover.env import CoverEnv
 
 PUSH = np.array([0.01, 0.0, 0.0, 0.0])  # hand forward 1 cm per step, fingers unchanged
 
@@ -79,13 +80,37 @@ def test_the_nominal_spec_leaves_the_environment_itself(cover_env):
     assert perturbed(cover_env, NOMINAL) is cover_env
 
 
+class NominalOnlyCover(CoverEnv):
+    """Declares its own capabilities without MuJoCo's perturbed physics."""
+
+    capabilities = Capabilities(oracle_skills=CoverEnv.capabilities.oracle_skills)
+
+
+def test_an_environment_declaring_no_perturbed_physics_refuses_a_perturbation():
+    env = NominalOnlyCover()
+    assert perturbed(env, NOMINAL) is env  # nominal physics needs no declaration
+    refused = r"'cover' does not support perturbations \(its Capabilities declare no perturbed"
+    with pytest.raises(PerturbationError, match=refused):
+        perturbed(env, Perturbation(mass_scale=2.0))
+    state = env.task(0, 7, True).init
+    assert observation_of(env)(state) is state  # no declared observation: the state itself
+
+
+def test_the_declared_observation_is_called_with_the_environment(cover_env):
+    seen = []
+    env = NominalOnlyCover()
+    object.__setattr__(env, "capabilities", Capabilities(observe=lambda e, s: seen.append(e) or s))
+    state = env.task(0, 7, True).init
+    assert observation_of(env)(state) is state and seen == [env]
+
+
 # -- physics ---------------------------------------------------------------------------
 
 
 def test_model_scales_edit_only_what_they_name(cover_env):
     nominal = cover_env.task(0, 7, True).init.sim.world.model
     p = Perturbation(mass_scale=3.0, friction_scale=0.5, gain_scale=0.25)
-    model = cover_env.perturbed(p).task(0, 7, True).init.sim.world.model
+    model = perturbed(cover_env, p).task(0, 7, True).init.sim.world.model
     block = nominal.body("block0").id
     hand = nominal.body("panda/hand").id
     assert model.body_mass[block] == pytest.approx(3.0 * nominal.body_mass[block])
@@ -105,7 +130,7 @@ def test_model_scales_edit_only_what_they_name(cover_env):
 def test_zero_friction_makes_the_demonstrated_grasp_fail(cover_env, cover_demos):
     demo = cover_demos[0]
     nominal = _heights(demo.states, "block0")
-    slippery = cover_env.perturbed(Perturbation(friction_scale=0.0))
+    slippery = perturbed(cover_env, Perturbation(friction_scale=0.0))
     states = _rollout(slippery, slippery.task(0, 7, True), demo.actions)
     assert nominal.max() > nominal[0] + 0.05  # the demo lifts block0
     assert _heights(states, "block0").max() < nominal[0] + 0.01  # it slips out of the pads
@@ -149,26 +174,27 @@ def test_action_noise_is_deterministic_per_seed_and_differs_between_seeds(cover_
 
 def test_observation_noise_changes_what_policies_see_but_not_the_physics(cover_env):
     p = Perturbation(obs_noise=0.01, seed=3)
-    env = cover_env.perturbed(p)
+    env = perturbed(cover_env, p)
     task = env.task(0, 7, True)
     noisy_states = _rollout(env, task, [PUSH] * 3)
     clean_states = _rollout(cover_env, cover_env.task(0, 7, True), [PUSH] * 3)
     for noisy, clean in zip(noisy_states, clean_states, strict=True):
         np.testing.assert_array_equal(noisy.sim.flat, clean.sim.flat)  # same simulation
-    seen = env.observe(noisy_states[-1])
-    again = env.observe(noisy_states[-1])
+    seen = observation_of(env)(noisy_states[-1])
+    again = observation_of(env)(noisy_states[-1])
     robot = _objects(seen)["robot"]
     delta = seen.data[robot] - noisy_states[-1].data[robot]
     assert 0 < np.abs(delta).max() < 0.06
     np.testing.assert_array_equal(seen.data[robot], again.data[robot])
     assert seen.sim is noisy_states[-1].sim
-    other = cover_env.perturbed(Perturbation(obs_noise=0.01, seed=4)).observe(noisy_states[-1])
+    other_env = perturbed(cover_env, Perturbation(obs_noise=0.01, seed=4))
+    other = observation_of(other_env)(noisy_states[-1])
     assert not np.array_equal(other.data[robot], seen.data[robot])
 
 
 @pytest.mark.parametrize("k", [1, 3])
 def test_latency_delays_the_response_by_k_control_steps(cover_env, k):
-    env = cover_env.perturbed(Perturbation(latency=k))
+    env = perturbed(cover_env, Perturbation(latency=k))
     late = _rollout(env, env.task(0, 7, True), [PUSH] * 6)
     hold = np.zeros_like(PUSH)
     prompt = _rollout(cover_env, cover_env.task(0, 7, True), [hold] * k + [PUSH] * (6 - k))
@@ -179,7 +205,7 @@ def test_latency_delays_the_response_by_k_control_steps(cover_env, k):
 
 
 def test_the_latency_queue_is_saved_state_so_a_restored_state_steps_identically(cover_env):
-    env = cover_env.perturbed(Perturbation(latency=2, action_noise=0.2, seed=5))
+    env = perturbed(cover_env, Perturbation(latency=2, action_noise=0.2, seed=5))
     states = _rollout(env, env.task(0, 7, True), [PUSH, -PUSH, PUSH])
     restored = env.state_from_flat(
         env.load_world(env.save_world(states[2].sim.world)), states[2].sim.flat.copy(), states[2]

@@ -4,7 +4,7 @@ import time
 import numpy as np
 import pytest
 
-from bpns.abstraction import abstract
+from bpns.env.abstraction import abstract
 from bpns.planning import FailureReason, PlanningConfig, plan
 from bpns.structs import GroundAtom
 from tests import toy_planning as toy

@@ -3,8 +3,8 @@ import time
 import numpy as np
 import pytest
 
-from bpns.abstraction import abstract
-from bpns.failures import NoSubgoal
+from bpns.env.abstraction import abstract
+from bpns.execution.failures import NoSubgoal
 from bpns.planning.config import PlanningConfig
 from bpns.planning.refinement import refine
 from bpns.planning.search import AbstractPlan

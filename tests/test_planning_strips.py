@@ -3,7 +3,7 @@ import time
 import numpy as np
 import pytest
 
-from bpns.abstraction import abstract
+from bpns.env.abstraction import abstract
 from bpns.planning.strips import GroundProblem, SearchTimeout, ground
 from bpns.structs import GroundAtom, LiftedAtom, Object, Predicate, STRIPSOperator, Type, Variable
 from tests import toy_planning as toy

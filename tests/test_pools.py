@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bpns.demos import collect_demonstrations
+from bpns.data.demos import collect_demonstrations
 from bpns.pools import bounded_map, capped_workers, make_pool, max_workers
 
 

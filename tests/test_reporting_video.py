@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bpns import reporting
 from bpns.approaches.bilevel import BilevelPlanning, oracle_skills
-from bpns.evaluation import EvalReport, solve_task
+from bpns.evaluation import reporting
+from bpns.evaluation.evaluate import EvalReport, solve_task
+from bpns.evaluation.reporting import render_longest_solved
 from bpns.planning.config import PlanningConfig
-from bpns.reporting import render_longest_solved
 
 
 def test_solved_task_video_is_rendered_outside_the_calling_process(

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 
 from bpns.cli import main
-from bpns.evaluation import EvalSpec, evaluate
-from bpns.perturbations import Perturbation
+from bpns.env.perturbations import Perturbation
+from bpns.evaluation.evaluate import EvalSpec, evaluate
+from bpns.evaluation.rollout_files import RolloutsFile, replay_rollouts, save_rollouts
+from bpns.execution.rollouts import REACHED, PlanStep, outcome_caption, step_captions
+from bpns.execution.video import draw_caption, render_rollout
 from bpns.planning.config import planning_config_for
-from bpns.rollout_files import RolloutsFile, replay_rollouts, save_rollouts
-from bpns.rollouts import REACHED, PlanStep, outcome_caption, step_captions
-from bpns.video import draw_caption, render_rollout
 
 SLIPPERY = Perturbation(friction_scale=0.0)
 
@@ -76,7 +76,7 @@ def test_rollouts_of_failed_and_perturbed_tasks_replay_exactly(
 
 
 def test_a_task_where_nothing_was_executed_is_a_one_state_row(cover_env, tmp_path):
-    from bpns.evaluation import EvalReport, TaskOutcome
+    from bpns.evaluation.evaluate import EvalReport, TaskOutcome
 
     config = planning_config_for(cover_env, timeout=1.0)
     nothing = TaskOutcome(
@@ -173,8 +173,8 @@ def test_render_and_eval_refuse_a_task_they_cannot_show(tmp_path, capsys, cover_
 
 
 def test_doors_videos_default_to_a_camera_its_scene_has():
-    from bpns.registry import make_environment
-    from bpns.video import default_camera
+    from bpns.env.registry import make_environment
+    from bpns.execution.video import default_camera
     from mj_envs.render import camera_names
 
     doors = make_environment("doors")

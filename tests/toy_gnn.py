@@ -11,8 +11,8 @@ import functools
 
 import numpy as np
 
-from bpns.abstraction import abstract
-from bpns.environment import Capabilities
+from bpns.env.abstraction import abstract
+from bpns.env.environment import Capabilities
 from bpns.learning.operators import learn_operators
 from bpns.learning.partition import partition_segments
 from bpns.learning.samplers import CurrentStateSampler

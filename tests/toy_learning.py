@@ -19,7 +19,7 @@ import functools
 import numpy as np
 import torch
 
-from bpns.abstraction import abstract
+from bpns.env.abstraction import abstract
 from bpns.learning.config import LearningConfig, MLPConfig
 from bpns.learning.operators import SkillDataset
 from bpns.learning.pipeline import LearnedSkills, learn_skills

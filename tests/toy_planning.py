@@ -21,7 +21,7 @@ from collections.abc import Hashable, Iterable, Sequence
 
 import numpy as np
 
-from bpns.environment import Capabilities
+from bpns.env.environment import Capabilities
 from bpns.planning.strips import GroundProblem
 from bpns.structs import (
     GroundAtom,

@@ -24,10 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-from bpns.environment import Environment
-from bpns.failures import FailureReason
+from bpns.env.environment import Environment
+from bpns.execution.failures import FailureReason
+from bpns.execution.rollouts import Rollout
 from bpns.planning.config import PlanningConfig
-from bpns.rollouts import Rollout
 from bpns.structs import Task
 
 
@@ -58,7 +58,7 @@ class Solution:
     # why a failed attempt failed, JSON-ready (abstract plans tried and, per step,
     # samples that failed and why): written to results.json, shown by `bpns eval --explain`
     explanation: dict | None = field(default=None, repr=False)
-    # what was executed (bpns.rollouts): the plan when solved, else the attempt that got
+    # what was executed (bpns.execution.rollouts): the plan when solved, else the attempt that got
     # furthest; None when the approach does not say
     rollout: Rollout | None = field(default=None, repr=False)
 

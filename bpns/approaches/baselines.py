@@ -25,12 +25,12 @@ from pathlib import Path
 
 import numpy as np
 
-from bpns.abstraction import abstract
 from bpns.approaches.base import Approach, ApproachEntry, SkillSource
 from bpns.approaches.bilevel import BilevelPlanning
 from bpns.approaches.metacontroller import Metacontroller, SkillChoice
 from bpns.approaches.policy import ClosedLoopPolicy
-from bpns.environment import Environment
+from bpns.env.abstraction import abstract
+from bpns.env.environment import Environment
 from bpns.learning.artifacts import ArtifactError, load_skills
 from bpns.learning.baselines import NOSUBGOAL_DIR
 from bpns.learning.given import given_skills_of

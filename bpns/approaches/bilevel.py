@@ -18,12 +18,12 @@ from bpns.approaches.base import (
     Solution,
     with_timeout,
 )
-from bpns.environment import Environment
+from bpns.env.environment import Environment
+from bpns.execution.rollouts import REACHED, Rollout, rollout_of
 from bpns.learning.artifacts import load_skills
 from bpns.learning.given import given_skills_of
 from bpns.planning.bilevel import PlanningStats, PlanResult, plan
 from bpns.planning.config import PlanningConfig
-from bpns.rollouts import REACHED, Rollout, rollout_of
 from bpns.structs import Skill, Task
 
 

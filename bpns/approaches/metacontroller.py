@@ -4,7 +4,7 @@
 next from the current state and abstract state (:meth:`Metacontroller.choose`, e.g. a
 GNN trained on demonstrations' skill sequences), with a subgoal of its own or one drawn
 from the skill's sampler. Each chosen skill is executed by the shared rollout
-(:class:`bpns.execution.SkillExecutor`) until the abstract state its operator predicts
+(:class:`bpns.execution.executor.SkillExecutor`) until the abstract state its operator predicts
 holds; any failure of an execution ends the attempt with that failure's reason.
 """
 
@@ -18,10 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bpns.abstraction import abstract
 from bpns.approaches.base import Approach, Solution, failure
-from bpns.environment import Environment
-from bpns.execution import (
+from bpns.env.abstraction import abstract
+from bpns.env.environment import Environment
+from bpns.execution.executor import (
     Executed,
     ExecutionTimeout,
     RolloutConfig,
@@ -29,9 +29,9 @@ from bpns.execution import (
     completion_test,
     expected_after,
 )
-from bpns.failures import NOT_EXECUTED, FailureReason, NoSubgoal
+from bpns.execution.failures import NOT_EXECUTED, FailureReason, NoSubgoal
+from bpns.execution.rollouts import REACHED, rollout_of
 from bpns.planning.config import PlanningConfig
-from bpns.rollouts import REACHED, rollout_of
 from bpns.structs import GroundAtom, Object, Skill, State, Task
 
 

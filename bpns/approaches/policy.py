@@ -2,7 +2,7 @@
 
 :class:`ClosedLoopPolicy` runs the loop; a subclass maps the current state to an action
 (:meth:`ClosedLoopPolicy.act`). Its outputs get the same checks as a skill's policy
-(:func:`bpns.execution.checked_action`: an exception, a wrong shape or NaN fails the
+(:func:`bpns.execution.executor.checked_action`: an exception, a wrong shape or NaN fails the
 attempt, actions are clipped into bounds). The goal is tested after every step; the
 attempt fails when the task's horizon is used up or the time runs out.
 """
@@ -15,13 +15,12 @@ import time
 
 import numpy as np
 
-from bpns.abstraction import abstract
 from bpns.approaches.base import Approach, Solution, failure
-from bpns.environment import Environment
-from bpns.execution import checked_action
-from bpns.failures import FailureReason
-from bpns.perturbations import observation_of
-from bpns.rollouts import Rollout
+from bpns.env.abstraction import abstract
+from bpns.env.environment import Environment, observation_of
+from bpns.execution.executor import checked_action
+from bpns.execution.failures import FailureReason
+from bpns.execution.rollouts import Rollout
 from bpns.structs import State, Task
 
 

@@ -1,6 +1,6 @@
 """Find approaches by name through the ``bpns.approaches`` entry-point group.
 
-Like environments (:mod:`bpns.registry`), an approach is declared in package metadata,
+Like environments (:mod:`bpns.env.registry`), an approach is declared in package metadata,
 e.g. ``[project.entry-points."bpns.approaches"] bpns = "bpns.approaches.bilevel:BPNS"``
 naming an :class:`~bpns.approaches.base.ApproachEntry`. A new approach (a baseline in
 this repository or in a plugin package) adds its entry point; nothing here changes,
@@ -12,7 +12,7 @@ from __future__ import annotations
 from importlib.metadata import entry_points
 
 from bpns.approaches.base import ApproachEntry
-from bpns.registry import PluginError, load_plugin
+from bpns.env.registry import PluginError, load_plugin
 
 GROUP = "bpns.approaches"
 

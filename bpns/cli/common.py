@@ -15,7 +15,7 @@ class UserError(Exception):
 
 
 def env_by_name(name: str):
-    from bpns.registry import PluginError, UnknownEnvironmentError, make_environment
+    from bpns.env.registry import PluginError, UnknownEnvironmentError, make_environment
 
     try:
         return make_environment(name)
@@ -94,7 +94,7 @@ def approach_by_name(name: str):
     """The registry entry of approach ``name``; a plugin that fails to load, or an
     unknown name, is a UserError naming it."""
     from bpns.approaches import UnknownApproachError, get_approach
-    from bpns.registry import PluginError
+    from bpns.env.registry import PluginError
 
     try:
         return get_approach(name)
@@ -105,7 +105,7 @@ def approach_by_name(name: str):
 def file_env(path: Path, name: str | None):
     import h5py
 
-    from bpns.datasets import not_a_demo_file
+    from bpns.data.datasets import not_a_demo_file
 
     if name is None:
         problem = not_a_demo_file(path)
@@ -137,9 +137,9 @@ def stage_reporter():
 
 def learned_in(directory: Path, env_name: str | None = None):
     """(environment, LearnedSkills) of a skills directory, errors as UserError."""
-    from bpns.learned import load_learned
+    from bpns.env.registry import PluginError, UnknownEnvironmentError
     from bpns.learning.artifacts import ArtifactError
-    from bpns.registry import PluginError, UnknownEnvironmentError
+    from bpns.learning.learned import load_learned
 
     try:
         return load_learned(directory, env_name)
@@ -164,9 +164,9 @@ def report_evaluation(
 ):
     """Print the table, write the results files to ``out`` and render a solved task to
     ``video`` (each when given): the end of ``bpns eval`` and of ``bpns run``."""
-    from bpns.evaluation import markdown_table
-    from bpns.reporting import render_longest_solved, write_results
-    from bpns.video import VideoError
+    from bpns.evaluation.evaluate import markdown_table
+    from bpns.evaluation.reporting import render_longest_solved, write_results
+    from bpns.execution.video import VideoError
 
     table = markdown_table(reports)
     print(table, end="")
@@ -207,11 +207,11 @@ def evaluate_approaches(
     """Evaluate each named approach in turn, printing its summary line as it finishes;
     the reports in the order named (the middle of ``bpns eval`` and of ``bpns run``)."""
     from bpns.approaches import NoOracleSkillsError, SkillSource, get_approach
-    from bpns.evaluation import EvalSpec, evaluate
+    from bpns.env.perturbations import NOMINAL
+    from bpns.evaluation.evaluate import EvalSpec, evaluate
+    from bpns.evaluation.reporting import solved_line
     from bpns.learning.artifacts import ArtifactError
     from bpns.learning.baselines import saved_baseline_seconds
-    from bpns.perturbations import NOMINAL
-    from bpns.reporting import solved_line
 
     stats = learned.stats if learned is not None else None
     for name in names:  # every approach can be built (its files load) before any work

@@ -20,6 +20,7 @@ from bpns.cli.common import (
     tolerance_or_off,
 )
 from bpns.cli.paths import capped_to_cores, check_eval_outputs, writing
+from bpns.env.perturbations import PerturbationError, parse_perturbation
 
 HELP = "solve held-out tasks by bilevel planning; results JSON + markdown table"
 
@@ -100,7 +101,7 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bpns.approaches import SkillSource
-    from bpns.perturbations import PerturbationError, parse_perturbation, perturbed
+    from bpns.env.environment import perturbed
     from bpns.planning.config import planning_config_for
 
     try:
@@ -166,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
             env, reports, args.out, args.video, args.seed, args.train, args.task, args.camera
         )
     if args.explain:
-        from bpns.reporting import explain_lines
+        from bpns.evaluation.reporting import explain_lines
 
         for report in reports:
             for line in explain_lines(report):

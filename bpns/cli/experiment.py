@@ -95,8 +95,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def sweep_config(args: argparse.Namespace) -> SweepConfig:
-    from bpns.perturbations import PerturbationError, parse_axis
-    from bpns.registry import environment_names
+    from bpns.env.perturbations import PerturbationError, parse_axis
+    from bpns.env.registry import environment_names
 
     axis = None
     if args.perturb_axis:
@@ -132,7 +132,7 @@ def loadable(config: SweepConfig, args: argparse.Namespace):
     its environments built: a preset (which takes every installed plugin) skips each
     broken one with one warning line; one named on the command line is an error."""
     from bpns.approaches import get_approach
-    from bpns.registry import PluginError, make_environment
+    from bpns.env.registry import PluginError, make_environment
 
     def skip(err: PluginError, named: bool) -> None:
         if named:
@@ -265,8 +265,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _check_demos_fit(cells, finished, envs, out: Path) -> None:
     """Refuse a sweep whose demonstrations still to collect cannot fit on ``out``'s disk
-    (a lower bound per demonstration; see ``bpns.datasets.min_demo_bytes``)."""
-    from bpns.datasets import min_demo_bytes
+    (a lower bound per demonstration; see ``bpns.data.datasets.min_demo_bytes``)."""
+    from bpns.data.datasets import min_demo_bytes
     from bpns.experiments.cells import DEMOS
 
     todo = [c for c in cells if c.kind == DEMOS and c.key not in finished]

@@ -120,7 +120,7 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpns.datasets import DatasetError
+    from bpns.data.datasets import DatasetError
     from bpns.learning.config import learning_config_for
     from bpns.workflow import CannotLearnError, learn_to_directory
 

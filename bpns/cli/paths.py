@@ -142,8 +142,8 @@ def check_free_space(path: Path, needed: int, flag: str, what: str) -> None:
 
 def check_demos_fit(env, num: int, seed: int, out: Path, flag: str) -> None:
     """Refuse ``num`` demonstrations that cannot fit on ``out``'s disk, before collecting
-    (a lower bound per demonstration: see ``bpns.datasets.min_demo_bytes``)."""
-    from bpns.datasets import min_demo_bytes
+    (a lower bound per demonstration: see ``bpns.data.datasets.min_demo_bytes``)."""
+    from bpns.data.datasets import min_demo_bytes
 
     needed = num * min_demo_bytes(env, env.task(0, seed, True))
     check_free_space(out, needed, flag, f"{num} demonstrations")

@@ -35,9 +35,9 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpns.datasets import DatasetError, load_demonstrations
-    from bpns.rollout_files import RolloutsFile, is_rollouts_file
-    from bpns.video import VideoError, default_camera, render_rollout, render_video
+    from bpns.data.datasets import DatasetError, load_demonstrations
+    from bpns.evaluation.rollout_files import RolloutsFile, is_rollouts_file
+    from bpns.execution.video import VideoError, default_camera, render_rollout, render_video
 
     env = file_env(args.file, args.env)
     try:

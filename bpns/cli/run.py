@@ -1,19 +1,25 @@
 """``bpns run``: the whole pipeline, demos -> replay check -> learn -> eval -> table ->
-video, by calling the library functions each step's command calls."""
+video, by calling the library functions each step's command calls.
+
+``run`` parses and checks its arguments once, into a :class:`RunConfig`, before any work;
+then it calls the steps one after the other, each with the config and what the step
+before it produced."""
 
 from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+from bpns.approaches import ApproachEntry, SkillSource, approach_names
 from bpns.cli.common import (
     UserError,
     approach_by_name,
     default_workers,
     env_by_name,
     evaluate_approaches,
-    learned_in,
     nonnegative,
     path_arg,
     positive,
@@ -32,14 +38,21 @@ from bpns.cli.paths import (
     check_skills_dir,
     writing,
 )
+from bpns.env.environment import Environment
+from bpns.evaluation.evaluate import EvalReport
+from bpns.learning import LearnedSkills, LearningConfig, describe
+from bpns.learning.config import learning_config_for
+from bpns.planning.config import PlanningConfig, planning_config_for
+from bpns.workflow import baselines_needed, check_replay, collect_demos, learn_to_directory
+
+if TYPE_CHECKING:
+    from bpns.learning.baselines import BaselinesConfig
 
 HELP = "the whole pipeline: demos -> learn -> eval -> table -> video"
 REPLAY_CHECKED = 5  # demonstrations re-simulated to check the simulator is exact
 
 
 def configure(p: argparse.ArgumentParser) -> None:
-    from bpns.approaches import approach_names
-
     p.add_argument("--env", required=True, help="environment name (e.g. cover)")
     p.add_argument("--demos", type=positive, default=50, help="number of demonstrations")
     p.add_argument("--tasks", type=positive, default=10, help="number of eval tasks")
@@ -72,8 +85,6 @@ def approaches_to_run(env, asked: list[str] | None) -> list:
     """The registry entries of the approaches ``asked`` (default: bpns, and oracle where
     ``env`` has hand-written skills), each checked to be able to run on ``env``: an
     impossible combination is refused before any work."""
-    from bpns.approaches import SkillSource
-
     if asked is None:
         asked = ["bpns", "oracle"] if env.capabilities.has_oracle_skills else ["bpns"]
     entries = []
@@ -88,20 +99,44 @@ def approaches_to_run(env, asked: list[str] | None) -> list:
     return entries
 
 
-def _baselines_config(stages: tuple[str, ...], steps: int | None):
-    from bpns.learning.baselines import BaselinesConfig
+@dataclass(frozen=True)
+class RunConfig:
+    """What ``bpns run`` was asked to do, checked, with the configs each step runs with:
+    refused input (or an environment's bad declaration) never starts work."""
 
-    base = BaselinesConfig() if steps is None else BaselinesConfig.with_max_steps(steps)
-    return base.only(stages)
+    env: Environment
+    entries: tuple[ApproachEntry, ...]  # in the order asked
+    stages: tuple[str, ...]  # the baselines they need, learned beside the skills
+    out: Path
+    num_demos: int
+    num_tasks: int
+    seed: int
+    workers: int
+    learning: LearningConfig
+    baselines: BaselinesConfig | None  # None: no approach asked needs a baseline
+    planning: PlanningConfig  # the approaches' base, with the --timeout
+
+    @property
+    def names(self) -> list[str]:
+        return [e.name for e in self.entries]
+
+    @property
+    def demos_path(self) -> Path:
+        return self.out / "demos.h5"
+
+    @property
+    def skills_dir(self) -> Path:
+        return self.out / "skills"
+
+    @property
+    def video(self) -> Path:
+        return self.out / "eval_solved.mp4"
 
 
-def run(args: argparse.Namespace) -> int:
-    from bpns.workflow import baselines_needed
-
+def parse_run(args: argparse.Namespace) -> RunConfig:
+    """``args`` as a :class:`RunConfig`; a UserError for anything ``run`` must refuse."""
     env = env_by_name(args.env)
     out: Path = args.out or Path("outputs") / env.name
-    demos_path, skills_dir = out / "demos.h5", out / "skills"
-    video = out / "eval_solved.mp4"
     entries = approaches_to_run(env, args.approach)
     names = [e.name for e in entries]
     stages = baselines_needed(entries)
@@ -109,74 +144,112 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(
             f"--baseline-steps applies to the baselines, and none of {', '.join(names)} uses one"
         )
+    planning = planning_config_for(env, timeout=args.timeout)
+    learning = learning_config_for(env, seed=args.seed)
+    baselines = None
+    if stages:
+        from bpns.learning.baselines import BaselinesConfig  # loads the GNN code: only here
+
+        steps = args.baseline_steps
+        base = BaselinesConfig() if steps is None else BaselinesConfig.with_max_steps(steps)
+        baselines = base.only(stages)
     check_output_dir(out, "--out")
-    check_output_file(demos_path, "--out", args.overwrite)
-    check_skills_dir(skills_dir, "--out", args.overwrite)
-    check_eval_outputs(out / "eval", video, names, args.overwrite)
-    check_demos_fit(env, args.demos, args.seed, demos_path, "--out")
-    workers = capped_to_cores(args.workers, "--workers")
-    with writing(out):
-        out.mkdir(parents=True, exist_ok=True)
-        return _pipeline(args, env, entries, stages, out, workers)
+    check_output_file(out / "demos.h5", "--out", args.overwrite)
+    check_skills_dir(out / "skills", "--out", args.overwrite)
+    check_eval_outputs(out / "eval", out / "eval_solved.mp4", names, args.overwrite)
+    check_demos_fit(env, args.demos, args.seed, out / "demos.h5", "--out")
+    return RunConfig(
+        env=env,
+        entries=tuple(entries),
+        stages=stages,
+        out=out,
+        num_demos=args.demos,
+        num_tasks=args.tasks,
+        seed=args.seed,
+        workers=capped_to_cores(args.workers, "--workers"),
+        learning=learning,
+        baselines=baselines,
+        planning=planning,
+    )
 
 
-def _pipeline(args, env, entries, stages: tuple[str, ...], out: Path, workers: int) -> int:
-    from bpns.learning import describe
-    from bpns.learning.config import learning_config_for
-    from bpns.planning.config import planning_config_for
-    from bpns.workflow import check_replay, collect_demos, learn_to_directory
+def run(args: argparse.Namespace) -> int:
+    config = parse_run(args)
+    with writing(config.out):
+        config.out.mkdir(parents=True, exist_ok=True)
+        t0 = time.perf_counter()
+        if not collect(config):
+            return 1
+        learned = learn(config)
+        reports = evaluate(config, learned=learned)
+        report(config, reports=reports)
+        if not all(r.num_solved for r in reports):
+            return 1
+        print(f"done in {time.perf_counter() - t0:.0f} s; everything is in {config.out}/")
+        return 0
 
-    names = [e.name for e in entries]
-    demos_path, skills_dir = out / "demos.h5", out / "skills"
-    video = out / "eval_solved.mp4"
-    t0 = time.perf_counter()
 
-    _step(f"demos: {args.demos} demonstrations of {env.name}")
+def collect(config: RunConfig) -> bool:
+    """Collect the demonstrations and re-simulate the first few; False when there are
+    none or replay is not exact (each says why)."""
+    env = config.env
+    _step(f"demos: {config.num_demos} demonstrations of {env.name}")
     written = collect_demos(
-        env, args.demos, args.seed, demos_path, workers=workers, progress=progress
+        env,
+        config.num_demos,
+        config.seed,
+        config.demos_path,
+        workers=config.workers,
+        progress=progress,
     )
     print_lines(written)
     if not written.num_written:
-        return 1
-
+        return False
     _step(f"replay: the first {REPLAY_CHECKED} demonstrations")
-    checked = check_replay(env, demos_path, REPLAY_CHECKED, progress)
+    checked = check_replay(env, config.demos_path, REPLAY_CHECKED, progress)
     print_lines(checked)
-    if not checked.ok:
-        return 1
+    return checked.ok
 
+
+def learn(config: RunConfig) -> LearnedSkills:
+    """Learn the skills (and the baselines the approaches need) into ``skills/``; what
+    was learned, described (evaluation loads the saved directory, as ``bpns eval``)."""
+    stages = config.stages
     _step("learn" + (f" (and the baselines {', '.join(stages)})" if stages else ""))
-    config = learning_config_for(env, seed=args.seed)
     learned_run = learn_to_directory(
-        env,
-        demos_path,
-        skills_dir,
-        config,
+        config.env,
+        config.demos_path,
+        config.skills_dir,
+        config.learning,
         progress=progress,
         report=stage_reporter(),
-        baselines=_baselines_config(stages, args.baseline_steps) if stages else None,
+        baselines=config.baselines,
     )
     print_lines(learned_run)
-    _, learned = learned_in(skills_dir)
-    print(describe(learned))
+    print(describe(learned_run.learned))
+    return learned_run.learned
 
-    _step(f"eval: {', '.join(names)} on {args.tasks} tasks")
-    base = planning_config_for(env, timeout=args.timeout)
-    reports = evaluate_approaches(
-        env,
-        names,
-        skills_dir=skills_dir,
+
+def evaluate(config: RunConfig, *, learned: LearnedSkills) -> list[EvalReport]:
+    """Evaluate every approach asked on held-out tasks; the reports, in that order."""
+    _step(f"eval: {', '.join(config.names)} on {config.num_tasks} tasks")
+    return evaluate_approaches(
+        config.env,
+        config.names,
+        skills_dir=config.skills_dir,
         learned=learned,
-        base_planning=base,
-        num_tasks=args.tasks,
-        task_seed=args.seed,
+        base_planning=config.planning,
+        num_tasks=config.num_tasks,
+        task_seed=config.seed,
         planner_seed=0,
         train=False,
         validate=True,
-        workers=workers,
+        workers=config.workers,
     )
-    report_evaluation(env, reports, out / "eval", video, args.seed, train=False)
-    if not all(r.num_solved for r in reports):
-        return 1
-    print(f"done in {time.perf_counter() - t0:.0f} s; everything is in {out}/")
-    return 0
+
+
+def report(config: RunConfig, *, reports: list[EvalReport]) -> None:
+    """The table, the results files and a video of a solved task."""
+    report_evaluation(
+        config.env, reports, config.out / "eval", config.video, config.seed, train=False
+    )

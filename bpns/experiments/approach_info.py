@@ -5,7 +5,7 @@ skills learned from demonstrations (so its eval cells depend on a skills cell an
 demo count), whether it can run on a given environment, how it adjusts the
 environment's planning settings, how long learning what it uses took, and its label in
 tables and figures. Everything else
-goes through ``bpns.evaluation`` by name.
+goes through ``bpns.evaluation.evaluate`` by name.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from bpns.approaches import approach_names as _registered
 from bpns.planning.config import PlanningConfig
 
 if TYPE_CHECKING:
-    from bpns.environment import Environment
+    from bpns.env.environment import Environment
 
 
 def approach_names() -> tuple[str, ...]:

@@ -17,12 +17,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from bpns.demo_attempts import demo_noise_of
-from bpns.environment import Environment
+from bpns.data.demo_attempts import demo_noise_of
+from bpns.env.environment import Environment
+from bpns.env.perturbations import Perturbation
 from bpns.experiments import approach_info
 from bpns.experiments.presets import SweepConfig
 from bpns.learning.config import LearningConfig, learning_config_for
-from bpns.perturbations import Perturbation
 from bpns.planning.config import PlanningConfig, planning_config_for
 
 DEMOS, SKILLS, EVAL = "demos", "skills", "eval"
@@ -49,7 +49,7 @@ class Cell:
     baselines: bool = False  # skills cells: also learn the paper's baselines beside them
     planning: PlanningConfig | None = None  # eval cells
     eval_tasks: int | None = None  # eval cells
-    demo_noise: float = 0.0  # demos cells: DART noise scale (bpns.demo_attempts)
+    demo_noise: float = 0.0  # demos cells: DART noise scale (bpns.data.demo_attempts)
     perturbation: Perturbation | None = None  # eval cells of a perturbation axis
     perturb_axis: str | None = None  # the axis' perturbation name
 

@@ -22,8 +22,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bpns.atomic import atomic_path
+from bpns.env.perturbations import AXIS_LABELS
 from bpns.experiments.aggregate import Row
-from bpns.perturbations import AXIS_LABELS
 
 FORMATS = ("png", "svg")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")

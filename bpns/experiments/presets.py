@@ -10,9 +10,9 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+from bpns.env.perturbations import Perturbation, PerturbationError
+from bpns.env.registry import environment_names
 from bpns.experiments.approach_info import approach_names
-from bpns.perturbations import Perturbation, PerturbationError
-from bpns.registry import environment_names
 
 
 class SweepConfigError(ValueError):
@@ -34,7 +34,7 @@ class SweepConfig:
     approaches: tuple[str, ...]
     eval_tasks: int
     timeout: float  # seconds of planning per eval task
-    # (perturbation name, levels): every eval cell once per level (bpns.perturbations)
+    # (perturbation name, levels): every eval cell once per level (bpns.env.perturbations)
     perturb_axis: tuple[str, tuple[float, ...]] | None = None
 
     def __post_init__(self) -> None:

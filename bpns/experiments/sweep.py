@@ -21,14 +21,14 @@ from pathlib import Path
 from typing import Any
 
 from bpns.atomic import atomic_path, storage_problem
-from bpns.environment import Environment
+from bpns.env.environment import Environment
+from bpns.env.registry import make_environment
 from bpns.experiments import approach_info
 from bpns.experiments.backends import Backend
 from bpns.experiments.cells import DEMOS, EVAL, SKILLS, Cell, plan_cells
 from bpns.experiments.presets import SweepConfig
 from bpns.experiments.store import FORMAT, CellStore, CellStoreError
 from bpns.experiments.work import CellJob, CellOutcome
-from bpns.registry import make_environment
 
 
 @dataclass

@@ -15,9 +15,9 @@ from pathlib import Path
 from typing import Any
 
 from bpns.atomic import storage_problem
+from bpns.env.registry import make_environment
 from bpns.experiments.cells import DEMOS, EVAL, SKILLS, SWEEP_GNN_SEED, Cell
 from bpns.learning.baselines import BaselinesConfig
-from bpns.registry import make_environment
 from bpns.workflow import collect_demos, learn_to_directory
 
 
@@ -113,8 +113,8 @@ def _learn(job: CellJob) -> dict[str, Any]:
 
 
 def _evaluate(job: CellJob) -> dict[str, Any]:
-    from bpns.evaluation import EvalSpec, evaluate, save_plans
-    from bpns.perturbations import NOMINAL
+    from bpns.env.perturbations import NOMINAL
+    from bpns.evaluation.evaluate import EvalSpec, evaluate, save_plans
 
     cell = job.cell
     assert cell.planning is not None and cell.approach is not None and cell.eval_tasks

@@ -41,10 +41,10 @@ from bpns.learning import artifact_checks as checks
 from bpns.learning.config import LearningConfig, MLPConfig
 from bpns.learning.demo_checks import check_finite_arrays
 from bpns.learning.given import BoundPolicy, BoundSampler, GivenSkill
+from bpns.learning.pddl import domain_pddl
 from bpns.learning.pipeline import LearnedSkills, LearningStats, SkillStats
 from bpns.learning.policies import LearnedPolicy
 from bpns.learning.samplers import CurrentStateSampler, LearnedSampler
-from bpns.pddl import domain_pddl
 from bpns.structs import LiftedAtom, Predicate, Skill, STRIPSOperator, Type, Variable
 
 FORMAT = "bpns-skills"

@@ -22,7 +22,7 @@ from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bpns.environment import Environment
+from bpns.env.environment import Environment
 from bpns.learning.artifacts import save_skills
 from bpns.learning.given import GivenSkill, given_skills_of
 from bpns.learning.gnn import GNNConfig, GNNTrainingStats

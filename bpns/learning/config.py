@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from bpns.environment import Environment
+    from bpns.env.environment import Environment
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ from bpns.structs import (
 )
 
 if TYPE_CHECKING:
-    from bpns.environment import Environment
+    from bpns.env.environment import Environment
 
 
 @dataclass(frozen=True)

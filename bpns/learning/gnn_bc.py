@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from bpns.abstraction import abstract
+from bpns.env.abstraction import abstract
 from bpns.learning.gnn import (
     GNNConfig,
     GNNParams,

@@ -16,7 +16,7 @@ from collections import defaultdict
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
-from bpns.abstraction import object_tuples
+from bpns.env.abstraction import object_tuples
 from bpns.learning.naming import index_name, readable_names
 from bpns.learning.partition import SegmentGroup
 from bpns.structs import (

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Collection, Iterable
 
-from bpns.abstraction import ground_atoms, true_atoms
+from bpns.env.abstraction import ground_atoms, true_atoms
 from bpns.structs import Demonstration, GroundAtom, Predicate, Segment
 
 

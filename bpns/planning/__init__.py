@@ -7,7 +7,7 @@
 - :mod:`~bpns.planning.bilevel`: ``plan(task, skills, env, config, rng)``.
 """
 
-from bpns.failures import FailureReason
+from bpns.execution.failures import FailureReason
 from bpns.planning.bilevel import PlanningStats, PlanResult, plan
 from bpns.planning.config import PlanningConfig
 from bpns.planning.heuristics import HFF, HAdd, Heuristic, HMax, LMCut, make_heuristic

@@ -14,16 +14,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bpns.abstraction import abstract
-from bpns.environment import Environment
-from bpns.failures import FailureReason
+from bpns.env.abstraction import abstract
+from bpns.env.environment import Environment
+from bpns.execution.failures import FailureReason
+from bpns.execution.rollouts import Rollout, further
 from bpns.planning.config import PlanningConfig
 from bpns.planning.heuristics import make_heuristic
 from bpns.planning.nogoods import NogoodMemo, PrefixCache
 from bpns.planning.refinement import RefinementStats, refine
 from bpns.planning.search import STRATEGIES, AbstractPlan, SearchStats, skeletons
 from bpns.planning.strips import SearchTimeout, ground
-from bpns.rollouts import Rollout, further
 from bpns.structs import Skill, State, STRIPSOperator, Task
 
 
@@ -90,7 +90,7 @@ class PlanResult:
     stats: PlanningStats = field(default_factory=PlanningStats)
     step_starts: tuple[int, ...] = ()
     subgoals: tuple[np.ndarray, ...] = ()
-    # a failed plan: the refinement attempt that got furthest (bpns.rollouts)
+    # a failed plan: the refinement attempt that got furthest (bpns.execution.rollouts)
     furthest: Rollout | None = None
 
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from bpns.environment import Environment
+    from bpns.env.environment import Environment
 
 HEURISTICS = ("lmcut", "hff", "hadd", "hmax")
 SEARCHES = ("astar", "gbfs", "ucs")

@@ -1,10 +1,10 @@
 """Backtracking refinement of one abstract plan into actions (paper §5, Alg. 1 line 3).
 
 For step i the ground skill's sampler proposes a subgoal and its policy is rolled out in
-the exact simulator (:class:`bpns.execution.SkillExecutor`) until the step's expected
+the exact simulator (:class:`bpns.execution.executor.SkillExecutor`) until the step's expected
 abstract state holds (and the operator's delete effects no longer do). A sample fails
 when the sampler misbehaves (exception or non-finite output) or the execution fails
-(skill horizon, stuck, task horizon, policy errors: see :mod:`bpns.execution`).
+(skill horizon, stuck, task horizon, policy errors: see :mod:`bpns.execution.executor`).
 After ``n_samples`` failed samples at step i we backtrack and resample step i - 1.
 
 Only the atoms the step's test needs are evaluated, once per simulated state, and adds
@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bpns.environment import Environment
-from bpns.execution import (
+from bpns.env.environment import Environment
+from bpns.execution.executor import (
     CompletionTest,
     Executed,
     ExecutionTimeout,
@@ -29,11 +29,11 @@ from bpns.execution import (
     completion_test,
     state_features,
 )
-from bpns.failures import NOT_EXECUTED, FailureReason, NoSubgoal
+from bpns.execution.failures import NOT_EXECUTED, FailureReason, NoSubgoal
+from bpns.execution.rollouts import REACHED, Rollout, further, rollout_of
 from bpns.planning.config import PlanningConfig
 from bpns.planning.nogoods import NogoodMemo, PrefixCache, StepKey
 from bpns.planning.search import AbstractPlan
-from bpns.rollouts import REACHED, Rollout, further, rollout_of
 from bpns.structs import GroundOperator, Skill, State, Task
 
 

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.environment import Capabilities
+from bpns.env.environment import Capabilities
 from bpns.structs import (
     GroundAtom,
     LiftedAtom,
@@ -40,7 +40,7 @@ from bpns_stack.rules import (
     X_RANGE,
     Y_RANGE,
 )
-from mj_envs.base import MujocoEnv, TaskLayout
+from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed
 from mj_envs.contacts import Contacts, body_geoms, geom_ids, relation_features
 from mj_envs.oracles.motions import Funnel, grasp_action, open_first, release_action
 from mj_envs.oracles.phases import DemonstrationFailed
@@ -64,7 +64,10 @@ class StackEnv(MujocoEnv):
     contact_predicates = PREDICATES
     goal_predicates = frozenset({ON})
     # what it offers beyond the required members: its hand-written skills (defined below)
-    capabilities = Capabilities(oracle_skills=lambda: oracle_skills())
+    # and MuJoCo's perturbed physics (`bpns eval --perturb`)
+    capabilities = Capabilities(
+        oracle_skills=lambda: oracle_skills(), perturbed=perturbed, observe=observe
+    )
 
     def sample_layout(self, rng: np.random.Generator, train: bool) -> TaskLayout:
         arena = make_arena("stack")

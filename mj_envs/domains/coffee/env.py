@@ -8,10 +8,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.environment import Capabilities
+from bpns.env.environment import Capabilities
 from bpns.structs import Object, Predicate, State, Task, Type
 from ik.orientation import rotation_delta, yaw_tilt_from_matrix
-from mj_envs.base import MujocoEnv, TaskLayout
+from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed
 from mj_envs.domains.coffee import scene
 from mj_envs.domains.coffee.demonstrator import CoffeeDemonstrator
 from mj_envs.domains.coffee.rules import (
@@ -75,6 +75,8 @@ class CoffeeEnv(MujocoEnv):
     capabilities = Capabilities(
         planning_defaults={"n_abstract": 1000, "max_state_repeats": 1},
         oracle_skills=oracle_skills,
+        perturbed=perturbed,
+        observe=observe,
     )
     controller_config = CONTROLLER
 

@@ -7,9 +7,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.environment import Capabilities
+from bpns.env.environment import Capabilities
 from bpns.structs import Object, Predicate, State, Task, Type
-from mj_envs.base import MujocoEnv, TaskLayout
+from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed
 from mj_envs.domains.cover import scene
 from mj_envs.domains.cover.demonstrator import CoverDemonstrator
 from mj_envs.domains.cover.rules import (
@@ -40,7 +40,10 @@ class CoverEnv(MujocoEnv):
     # descent proportional to the remaining height) faded in a network trained on 100
     # demos; an affine base under it keeps them (docs/METHOD.md).
     capabilities = Capabilities(
-        oracle_skills=oracle_skills, learning_defaults={"linear_policy_base": True}
+        oracle_skills=oracle_skills,
+        learning_defaults={"linear_policy_base": True},
+        perturbed=perturbed,
+        observe=observe,
     )
 
     @property

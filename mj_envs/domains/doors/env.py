@@ -60,10 +60,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.environment import Capabilities
+from bpns.env.environment import Capabilities
 from bpns.structs import GroundAtom, Object, Predicate, Task, Type
 from ik import ControllerConfig
-from mj_envs.base import MujocoEnv, TaskLayout
+from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed
 from mj_envs.domains.doors.demonstrator import DoorsDemonstrator
 from mj_envs.domains.doors.rules import (
     DOOR,
@@ -99,7 +99,11 @@ class DoorsEnv(MujocoEnv):
     # MoveToDoor and MoveThroughDoor are given: motion-planned skills learning keeps.
     # Videos follow the base: it travels rooms away, and the overview shows it tiny.
     capabilities = Capabilities(
-        oracle_skills=oracle_skills, given_skills=given_skills, default_camera="follow"
+        oracle_skills=oracle_skills,
+        given_skills=given_skills,
+        default_camera="follow",
+        perturbed=perturbed,
+        observe=observe,
     )
     base_config = BaseConfig()
     controller_config = ControllerConfig(

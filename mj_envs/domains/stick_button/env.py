@@ -8,9 +8,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.environment import Capabilities
+from bpns.env.environment import Capabilities
 from bpns.structs import Object, Predicate, Task, Type
-from mj_envs.base import MujocoEnv, TaskLayout
+from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed
 from mj_envs.domains.stick_button import scene
 from mj_envs.domains.stick_button.demonstrator import StickButtonDemonstrator
 from mj_envs.domains.stick_button.rules import (
@@ -51,6 +51,8 @@ class StickButtonEnv(MujocoEnv):
         learning_defaults={"near_goal_scale": 0.01},
         oracle_skills=oracle_skills,
         demo_noise=0.05,
+        perturbed=perturbed,
+        observe=observe,
     )
     controller_config = CONTROLLER
 

@@ -1,14 +1,14 @@
 """Rollouts files: every task an evaluation ran, solved or failed, as data.
 
-A rollouts file *is* a demonstration file (:mod:`bpns.datasets`: the same writer and
+A rollouts file *is* a demonstration file (:mod:`bpns.data.datasets`: the same writer and
 reader; ``demo_<i>`` holds task i's initial state, actions, states, features, goal and
 MJCF), with attributes that say what the rows are:
 
 - root: ``kind`` = ``rollouts``, ``approach``, ``label``, ``task_seed``, ``train_tasks``,
-  ``perturbation`` (JSON of :class:`bpns.perturbations.Perturbation`: the physics the
+  ``perturbation`` (JSON of :class:`bpns.env.perturbations.Perturbation`: the physics the
   rollouts ran under, needed to replay them exactly);
 - per demo: ``task`` (the eval task index), ``solved`` (0/1), ``reason`` (why it
-  failed, "" when solved), ``plan`` (JSON list of :class:`bpns.rollouts.PlanStep`).
+  failed, "" when solved), ``plan`` (JSON list of :class:`bpns.execution.rollouts.PlanStep`).
 
 For a failed task the rows are the attempt that got furthest (bilevel planning: the
 deepest refined prefix, then the failed sample after it, with its failure reason), so
@@ -24,12 +24,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bpns.datasets import DatasetError, load_demonstrations, read_attributes, write_demonstrations
-from bpns.demos import ReplayReport, replay
-from bpns.environment import Environment
-from bpns.evaluation import EvalReport, TaskOutcome
-from bpns.perturbations import Perturbation, PerturbationError, perturbed
-from bpns.rollouts import PlanStep, Rollout
+from bpns.data.datasets import (
+    DatasetError,
+    load_demonstrations,
+    read_attributes,
+    write_demonstrations,
+)
+from bpns.data.demos import ReplayReport, replay
+from bpns.env.environment import Environment, perturbed
+from bpns.env.perturbations import Perturbation, PerturbationError
+from bpns.evaluation.evaluate import EvalReport, TaskOutcome
+from bpns.execution.rollouts import PlanStep, Rollout
 from bpns.structs import Demonstration, Task
 
 KIND = "rollouts"

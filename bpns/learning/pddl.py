@@ -11,7 +11,7 @@ from __future__ import annotations
 import re
 from collections.abc import Collection, Iterable
 
-from bpns.abstraction import abstract
+from bpns.env.abstraction import abstract
 from bpns.structs import GroundAtom, LiftedAtom, Object, Predicate, STRIPSOperator, Task, Type
 
 _INVALID = re.compile(r"[^A-Za-z0-9_-]")

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from importlib.metadata import EntryPoint, entry_points
 from typing import TypeVar
 
-from bpns.environment import Environment, declaration_problem
+from bpns.env.environment import Environment, declaration_problem
 
 GROUP = "bpns.environments"
 T = TypeVar("T")

@@ -1,8 +1,9 @@
 """Physical perturbations an evaluation runs under: a typed, validated spec.
 
-bpns only carries the spec; the environment implements it (``env.perturbed(spec)``
-returns the same environment with perturbed physics; ``mj_envs`` documents what each
-one changes in MuJoCo). The spec is stored in every rollouts file, so a perturbed
+bpns only carries the spec; the environment implements it (its declared
+``Capabilities.perturbed`` returns the same environment with perturbed physics, applied
+through ``bpns.env.environment.perturbed``; ``mj_envs`` documents what each one changes in
+MuJoCo). The spec is stored in every rollouts file, so a perturbed
 rollout replays and renders exactly.
 
 Names (``bpns eval --perturb NAME=VALUE``):
@@ -172,24 +173,3 @@ def parse_axis(text: str) -> tuple[str, tuple[int | float, ...]]:
     if len(set(values)) != len(values):
         raise PerturbationError(f"perturbation axis {text!r} repeats a value")
     return name, values
-
-
-def perturbed(env, spec: Perturbation):
-    """``env`` under ``spec`` (``env`` itself when nominal); an environment that cannot
-    be perturbed is a :class:`PerturbationError`."""
-    if spec.nominal:
-        return env
-    make = getattr(env, "perturbed", None)
-    if make is None:
-        raise PerturbationError(f"environment {env.name!r} does not support perturbations")
-    return make(spec)
-
-
-def observation_of(env):
-    """What a policy sees of a state: ``env.observe`` (e.g. noisy features) if the
-    environment declares it, else the state itself."""
-    return getattr(env, "observe", _identity)
-
-
-def _identity(state):
-    return state

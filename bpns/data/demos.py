@@ -9,17 +9,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bpns.abstraction import abstract
-from bpns.demo_attempts import DemoAttempt, attempt_demonstration
-from bpns.environment import Environment
+from bpns.data.demo_attempts import DemoAttempt, attempt_demonstration
+from bpns.env.abstraction import abstract
+from bpns.env.environment import Environment
+from bpns.env.registry import make_environment
 from bpns.pools import bounded_map, capped_workers, make_pool
-from bpns.registry import make_environment
 from bpns.structs import Demonstration, Task
 
 
 def run_demonstrator(env: Environment, task: Task, seed: int | list[int]) -> Demonstration | None:
     """Roll the env's demonstrator out from ``task.init``; None if the goal was not reached
-    (:func:`bpns.demo_attempts.attempt_demonstration` says why)."""
+    (:func:`bpns.data.demo_attempts.attempt_demonstration` says why)."""
     return attempt_demonstration(env, task, seed).demo
 
 

@@ -3,20 +3,22 @@
 bpns never imports a simulator or names a domain: an environment declares its types,
 predicates (and which of them are contact-related, for segmentation), action bounds,
 task distributions and its exact transition function ``simulate``. What it may offer
-beyond that (planning and learning defaults, hand-written or given skills) it declares in
-one :class:`Capabilities` value, so bpns reads declarations instead of probing for
-attributes.
+beyond that (planning and learning defaults, hand-written or given skills, perturbed
+physics, what policies observe) it declares in one :class:`Capabilities` value, so bpns
+reads declarations instead of probing for attributes.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from types import MappingProxyType
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from bpns.env.perturbations import Perturbation, PerturbationError
 from bpns.structs import GivenSkill, Predicate, Skill, State, Task, Type
 
 
@@ -37,9 +39,17 @@ class Capabilities:
     given_skills:      makes the skills learning keeps as given (``bpns.learning.given``);
                        None: every skill is learned.
     demo_noise:        DART noise scale of the scripted demonstrations
-                       (``bpns.demo_attempts.ActionNoise``); 0.0: plain demonstrations.
+                       (``bpns.data.demo_attempts.ActionNoise``); 0.0: plain demonstrations.
     default_camera:    the camera videos use unless told (e.g. one that follows a mobile
                        robot, which leaves a fixed camera's view).
+    perturbed:         ``perturbed(env, spec)``: ``env`` under a
+                       ``bpns.env.perturbations.Perturbation`` (``bpns eval --perturb``);
+                       None: nominal physics only.
+    observe:           ``observe(env, state)``: what the skills' policies see of a state
+                       (e.g. noisy features); None: the state itself.
+
+    The last two take the environment because one declaration (a class attribute) serves
+    every instance, including the perturbed copies ``perturbed`` returns.
     """
 
     planning_defaults: Mapping[str, object] = field(default_factory=dict)
@@ -48,6 +58,8 @@ class Capabilities:
     given_skills: Callable[[], Sequence[GivenSkill]] | None = None
     demo_noise: float = 0.0
     default_camera: str = "overview"
+    perturbed: Callable[[Environment, Perturbation], Environment] | None = None
+    observe: Callable[[Environment, State], State] | None = None
 
     def __post_init__(self) -> None:  # read-only: one declaration shared by every instance
         if not 0.0 <= self.demo_noise < float("inf"):
@@ -62,7 +74,14 @@ class Capabilities:
 
 # What the optional part of the contract was before ``Capabilities``: attributes of the
 # environment itself. An environment still declaring one would have it silently ignored.
-MOVED_TO_CAPABILITIES = ("planning_defaults", "learning_defaults", "oracle_skills", "given_skills")
+MOVED_TO_CAPABILITIES = (
+    "planning_defaults",
+    "learning_defaults",
+    "oracle_skills",
+    "given_skills",
+    "perturbed",
+    "observe",
+)
 
 
 def declaration_problem(env: object) -> str | None:
@@ -75,17 +94,17 @@ def declaration_problem(env: object) -> str | None:
         fields = ", ".join(f"{a}=..." for a in moved)
         return (
             f"environment {name!r} declares {', '.join(moved)} as attributes: declare "
-            f"`capabilities = Capabilities({fields})` (bpns.environment) instead; "
+            f"`capabilities = Capabilities({fields})` (bpns.env.environment) instead; "
             "see docs/NEW_TASK.md"
         )
     missing = [a for a in ("capabilities", "contact_settle_steps") if not hasattr(env, a)]
     if missing:
         return (
-            f"environment {name!r} lacks {', '.join(missing)} of bpns.environment.Environment "
+            f"environment {name!r} lacks {', '.join(missing)} of bpns.env.environment.Environment "
             "(MujocoEnv provides both); see docs/NEW_TASK.md"
         )
     if not isinstance(env.capabilities, Capabilities):  # type: ignore[attr-defined]
-        return f"environment {name!r}: capabilities must be a bpns.environment.Capabilities"
+        return f"environment {name!r}: capabilities must be a bpns.env.environment.Capabilities"
     return None
 
 
@@ -110,12 +129,9 @@ class Environment(Protocol):
     # (a release that bounces, a touch-down a step after letting go); 1 is the paper's
     # literal segmentation.
     contact_settle_steps: int
-    # Defaults and skills the environment offers beyond this protocol (all optional).
+    # Defaults, skills, perturbed physics and observations the environment offers beyond
+    # this protocol (all optional).
     capabilities: Capabilities
-    # Optional methods (``mj_envs.MujocoEnv`` provides both): ``perturbed(spec) ->
-    # Environment``, the same environment under a ``bpns.perturbations.Perturbation``
-    # (``bpns eval --perturb``), and ``observe(state) -> State``, what policies see of a
-    # state (e.g. noisy features).
 
     @property
     def goal_predicates(self) -> frozenset[Predicate]: ...
@@ -161,3 +177,30 @@ class Environment(Protocol):
     def state_from_flat(self, world: Hashable, flat: np.ndarray, like: State) -> State:
         """Rebuild a full State (features included) from a flat simulator state."""
         ...
+
+
+def perturbed(env: Environment, spec: Perturbation) -> Environment:
+    """``env`` under ``spec`` (``env`` itself when nominal); an environment that declares
+    no ``Capabilities.perturbed`` is a :class:`PerturbationError`."""
+    if spec.nominal:
+        return env
+    make = env.capabilities.perturbed
+    if make is None:
+        raise PerturbationError(
+            f"environment {env.name!r} does not support perturbations "
+            "(its Capabilities declare no perturbed)"
+        )
+    return make(env, spec)
+
+
+def observation_of(env: Environment) -> Callable[[State], State]:
+    """What a policy sees of a state: the declared ``Capabilities.observe`` (e.g. noisy
+    features), else the state itself."""
+    observe = env.capabilities.observe
+    if observe is None:
+        return _identity
+    return partial(observe, env)
+
+
+def _identity(state: State) -> State:
+    return state

@@ -5,7 +5,7 @@ here: member names and link kinds (no external or soft links, no external or vir
 datasets, which would read other files), attribute types, dataset ranks, dtypes and
 column counts, a size limit checked on the *declared* shape before a single byte is
 read, and finiteness. Each check raises ``ValueError`` with a message naming what is
-wrong; :mod:`bpns.datasets` adds the file and demo and turns it into ``DatasetError``.
+wrong; :mod:`bpns.data.datasets` adds the file and demo and turns it into ``DatasetError``.
 """
 
 from __future__ import annotations

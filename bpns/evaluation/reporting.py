@@ -10,15 +10,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bpns.atomic import atomic_path
-from bpns.environment import Environment
-from bpns.evaluation import EvalReport, TaskOutcome, save_plans
-from bpns.failures import MEANING
-from bpns.perturbations import Perturbation, perturbed
+from bpns.env.environment import Environment, perturbed
+from bpns.env.perturbations import Perturbation
+from bpns.env.registry import make_environment
+from bpns.evaluation.evaluate import EvalReport, TaskOutcome, save_plans
+from bpns.evaluation.rollout_files import demonstration_of, rollouts_name, save_rollouts
+from bpns.execution.failures import MEANING
+from bpns.execution.rollouts import Rollout
+from bpns.execution.video import render_rollout
 from bpns.pools import make_pool
-from bpns.registry import make_environment
-from bpns.rollout_files import demonstration_of, rollouts_name, save_rollouts
-from bpns.rollouts import Rollout
-from bpns.video import render_rollout
 
 
 def solved_line(report: EvalReport) -> str:
@@ -37,7 +37,7 @@ def write_results(
 ) -> None:
     """results.json (every report), results.md (``table``) and one plans file per
     approach in ``out`` (created if missing), each written atomically; given ``env``,
-    also one rollouts file per approach (:mod:`bpns.rollout_files`)."""
+    also one rollouts file per approach (:mod:`bpns.evaluation.rollout_files`)."""
     out.mkdir(parents=True, exist_ok=True)
     with atomic_path(out / "results.json") as tmp:
         tmp.write_text(json.dumps([r.to_json() for r in reports], indent=2, allow_nan=False) + "\n")
@@ -144,7 +144,8 @@ def render_longest_solved(
     or failed) from its task's initial state under the report's physics and render it to
     ``video`` with captions and a PNG of its end; None when nothing was solved and no
     task was named. ``camera`` defaults to the environment's. Raises
-    ``bpns.video.VideoError`` when rendering fails, ValueError for a task not evaluated."""
+    ``bpns.execution.video.VideoError`` when rendering fails, ValueError for a task not
+    evaluated."""
     if task is None:
         outcome = longest_solved(report)
         if outcome is None:

@@ -2,7 +2,7 @@
 
 :class:`SkillExecutor` runs one ground skill's policy towards a given subgoal until an
 expected abstract state holds (its :class:`CompletionTest`), or fails with a
-:class:`~bpns.failures.FailureReason`: the skill's horizon is hit, the world stops
+:class:`~bpns.execution.failures.FailureReason`: the skill's horizon is hit, the world stops
 changing (``stuck``), a contact atom changes although the test does not hold yet, the
 task's step budget would be exceeded, or the policy misbehaves (exception, wrong
 shape, non-finite output): learned networks must never crash an approach. Actions are
@@ -22,10 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bpns.abstraction import object_tuples
-from bpns.environment import Environment
-from bpns.failures import FailureReason
-from bpns.perturbations import observation_of
+from bpns.env.abstraction import object_tuples
+from bpns.env.environment import Environment, observation_of
+from bpns.execution.failures import FailureReason
 from bpns.structs import GroundAtom, GroundOperator, Object, Skill, State, Task
 
 

@@ -30,9 +30,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from bpns import dataset_checks as checks
 from bpns.atomic import atomic_path
-from bpns.environment import Environment
+from bpns.data import dataset_checks as checks
+from bpns.env.environment import Environment
 from bpns.structs import Demonstration, GroundAtom, Object, SimState, State, Task
 
 FORMAT = "bpns-demos-1"
@@ -211,7 +211,7 @@ def _data(f: h5py.File, path: str | os.PathLike) -> h5py.Group:
 
 
 def _read_demo(g: h5py.Group, env: Environment, features_only: bool) -> Demonstration:
-    """Read and check one demo group (see :mod:`bpns.dataset_checks`); ValueError naming
+    """Read and check one demo group (see :mod:`bpns.data.dataset_checks`); ValueError naming
     the first problem."""
     types = {t.name: t for t in env.types}
     preds = {p.name: p for p in env.predicates}

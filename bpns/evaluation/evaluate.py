@@ -23,14 +23,14 @@ from typing import Any
 
 import numpy as np
 
-from bpns.abstraction import abstract
 from bpns.approaches import Approach, get_approach
 from bpns.approaches import NoOracleSkillsError as NoOracleSkillsError  # re-exported
-from bpns.environment import Environment
-from bpns.perturbations import NOMINAL, Perturbation, perturbed
+from bpns.env.abstraction import abstract
+from bpns.env.environment import Environment, perturbed
+from bpns.env.perturbations import NOMINAL, Perturbation
+from bpns.execution.rollouts import Rollout
 from bpns.planning.config import PlanningConfig
 from bpns.pools import make_pool
-from bpns.rollouts import Rollout
 from bpns.structs import Task
 
 
@@ -52,7 +52,7 @@ class EvalSpec:
 @dataclass(frozen=True, eq=False)
 class TaskOutcome:
     """The result of solving one task (``actions`` is empty unless solved; ``rollout`` is
-    what was executed, solved or not: see :mod:`bpns.rollouts`)."""
+    what was executed, solved or not: see :mod:`bpns.execution.rollouts`)."""
 
     index: int
     solved: bool
@@ -250,7 +250,7 @@ _WORKER: dict[str, Any] = {}
 
 
 def _init_worker(spec: EvalSpec) -> None:
-    from bpns.registry import make_environment
+    from bpns.env.registry import make_environment
 
     env = perturbed(make_environment(spec.env_name), spec.perturbation)
     _WORKER.update(spec=spec, env=env, approach=approach_for(spec, env))

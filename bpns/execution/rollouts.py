@@ -6,7 +6,7 @@ one :class:`PlanStep` per skill execution: the ground operator, its subgoal, the
 of its first action and its outcome (``reached`` or the failure reason). For a solved
 task it is the plan; for a failed one, what the approach reports as the attempt that got
 furthest (bilevel planning: the deepest refined prefix plus the failed sample after it).
-Evaluation writes them to a rollouts file (:mod:`bpns.rollout_files`).
+Evaluation writes them to a rollouts file (:mod:`bpns.evaluation.rollout_files`).
 """
 
 from __future__ import annotations

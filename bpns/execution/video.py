@@ -13,8 +13,8 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from bpns.atomic import atomic_path
-from bpns.environment import Environment
-from bpns.rollouts import PlanStep, outcome_caption, step_captions
+from bpns.env.environment import Environment
+from bpns.execution.rollouts import PlanStep, outcome_caption, step_captions
 from bpns.structs import State
 
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import os
 
-from bpns.environment import Environment
+from bpns.env.environment import Environment
+from bpns.env.registry import make_environment
 from bpns.learning.artifacts import ArtifactError, load_skills, saved_env_name
 from bpns.learning.given import given_skills_of
 from bpns.learning.pipeline import LearnedSkills
-from bpns.registry import make_environment
 
 
 def load_learned(
@@ -16,7 +16,7 @@ def load_learned(
 ) -> tuple[Environment, LearnedSkills]:
     """(environment, skills) of ``directory``; the environment is ``env_name`` or the one
     the directory records. Raises ``ArtifactError`` (a bad directory, or no recorded
-    environment and none given) or ``bpns.registry.UnknownEnvironmentError``."""
+    environment and none given) or ``bpns.env.registry.UnknownEnvironmentError``."""
     name = env_name or saved_env_name(directory)
     if name is None:
         raise ArtifactError(f"{directory} does not record its environment; pass --env")

@@ -1,6 +1,6 @@
 """One run of a scripted demonstrator, with the reason when it fails.
 
-``bpns.demos.run_demonstrator`` keeps its contract (a Demonstration or None) by
+``bpns.data.demos.run_demonstrator`` keeps its contract (a Demonstration or None) by
 delegating here; callers that must say *why* a task was not demonstrated (``bpns demos``,
 ``bpns check-env``) use :func:`attempt_demonstration`, whose :class:`DemoAttempt` carries
 the exception (type, message, traceback) and the last abstract states the run went
@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bpns.abstraction import abstract
-from bpns.environment import Environment
+from bpns.env.abstraction import abstract
+from bpns.env.environment import Environment
 from bpns.structs import Demonstration, State, Task
 
 TRACE_LENGTH = 5  # abstract states kept for a failure's atom trace

@@ -1,0 +1,1 @@
+"""Evaluating approaches on held-out tasks, and what an evaluation leaves behind."""

@@ -1,0 +1,2 @@
+"""Running skills in the exact simulator, and what a run leaves: rollout records, failure
+reasons, videos."""
