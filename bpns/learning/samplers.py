@@ -240,13 +240,18 @@ def sampler_training_data(
 
 CONTEXT_MOVE = 0.1  # a context dim moves less than this fraction of its spread over starts
 RANGE_MARGIN = 0.1  # ... and may lie this fraction of its spread beyond the demonstrated range
+MIN_NOVELTY_SEGMENTS = 10  # fewer segments say too little about where a skill can start
 
 
 @dataclass(frozen=True, eq=False)
 class Novelty:
     """A sampler's test of its start: is a *context* dim (``dims``, indices into the state
     dims; see :func:`context_dims`) outside ``[low, high]``, the range its segments
-    started from widened by ``RANGE_MARGIN`` of the spread plus ``novelty_floor``?
+    started from widened on each side by ``max(RANGE_MARGIN, 2 / (n - 1))`` of the spread
+    plus ``novelty_floor``? The range of n draws misses about 1 / (n + 1) of their
+    distribution's spread at each end; the second term covers that where n is small.
+    With fewer than ``MIN_NOVELTY_SEGMENTS`` segments there is no test at all (Doors from
+    six demonstrations: the door's mass and friction ranges of six doors refused the next).
 
     Networks see such a dim clipped into their input box, so they answer for another
     world: at 250 Stick Button demonstrations the hand press at a button 0.92 m away
@@ -263,10 +268,17 @@ class Novelty:
         return bool(((x < self.low) | (x > self.high)).any())
 
     @classmethod
-    def of(cls, gen_x: np.ndarray, gen_y: np.ndarray, dims: ScopeDims, floor: float) -> Novelty:
+    def of(
+        cls, gen_x: np.ndarray, gen_y: np.ndarray, dims: ScopeDims, floor: float
+    ) -> Novelty | None:
+        """The test learned from a skill's segments (rows of ``gen_x``/``gen_y``), or None
+        when there are too few of them."""
+        n = len(gen_x)
+        if n < MIN_NOVELTY_SEGMENTS:
+            return None
         j = context_dims(gen_x, gen_y, dims)
         lo, hi = gen_x[:, j].min(axis=0), gen_x[:, j].max(axis=0)
-        pad = RANGE_MARGIN * (hi - lo) + floor
+        pad = max(RANGE_MARGIN, 2.0 / (n - 1)) * (hi - lo) + floor
         return cls(j, lo - pad, hi + pad)
 
     def to_arrays(self, prefix: str) -> dict[str, np.ndarray]:
