@@ -196,11 +196,12 @@ def learn_to_directory(
     progress: Progress = _no_progress,
     report: Callable[[str], None] | None = None,
     baselines: BaselinesConfig | None = None,
+    workers: int = 1,
 ) -> LearnedRun:
     """Learn skills from the first ``limit`` (default: all) demonstrations of
     ``demos_path`` and save them to ``out`` (replacing it); with ``baselines`` also the
     paper's baselines from the same demonstrations, saved beside them
-    (:mod:`bpns.learning.baselines`).
+    (:mod:`bpns.learning.baselines`); ``workers`` processes train the skills' networks.
     Raises ``bpns.data.datasets.DatasetError`` for a bad
     file and :class:`CannotLearnError` when the demos cannot be learned from."""
     from bpns.data.datasets import count_demonstrations, iter_demonstrations
@@ -218,7 +219,13 @@ def learn_to_directory(
     torch.set_num_threads(threads)
     try:
         learned = learn_skills(
-            demos, env.predicates, env.contact_predicates, config, report, given_skills_of(env)
+            demos,
+            env.predicates,
+            env.contact_predicates,
+            config,
+            report,
+            given_skills_of(env),
+            workers=workers,
         )
     except ValueError as err:
         raise CannotLearnError(f"cannot learn from {demos_path}: {err}") from None

@@ -96,6 +96,20 @@ def test_same_inputs_and_seed_give_identical_weights():
         assert not sa.policy.params.identical(sc.policy.params)
 
 
+def test_networks_trained_in_worker_processes_are_the_same_bit_for_bit():
+    demos = toy.demos(4, seed=1)
+    config = toy.fast_config(seed=7, steps=30)
+    one = learn_skills(demos, toy.PREDICATES, toy.CONTACT_PREDICATES, config)
+    two = learn_skills(demos, toy.PREDICATES, toy.CONTACT_PREDICATES, config, workers=2)
+    assert [s.name for s in one.skills] == [s.name for s in two.skills]
+    for a, b in zip(one.skills, two.skills, strict=True):
+        assert a.policy.params.identical(b.policy.params)
+        assert a.sampler.generator_params.identical(b.sampler.generator_params)
+        assert a.sampler.classifier_params.identical(b.sampler.classifier_params)
+    stages = dict(two.stats.stage_seconds)
+    assert stages["policies"] > 0 and stages["samplers"] > 0
+
+
 def test_seeds_differ_per_skill_and_network():
     seeds = {derive_seed(0, k, role) for k in range(5) for role in range(2)}
     assert len(seeds) == 10

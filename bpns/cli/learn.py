@@ -18,7 +18,7 @@ from bpns.cli.common import (
     stage_reporter,
     tolerance_or_off,
 )
-from bpns.cli.paths import capped_to_cores, check_skills_dir, writing
+from bpns.cli.paths import capped_to_cores, check_skills_dir, usable_cores, writing
 
 if TYPE_CHECKING:
     from bpns.learning.baselines import BaselinesConfig
@@ -117,6 +117,13 @@ def configure(p: argparse.ArgumentParser) -> None:
         default=1,
         help="torch threads for training (1 is fastest for these small networks)",
     )
+    p.add_argument(
+        "--workers",
+        type=positive,
+        default=None,
+        help="processes that train the skills' networks, one skill each at a time "
+        "(default: one per core; the weights are the same for any number)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -138,6 +145,7 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"{flag} applies to the baselines: add --baselines")
     env = file_env(args.demos, None)
     threads = capped_to_cores(args.threads, "--threads")
+    workers = usable_cores() if args.workers is None else capped_to_cores(args.workers, "--workers")
     config = learning_config_for(
         env,
         seed=args.seed,
@@ -175,6 +183,7 @@ def run(args: argparse.Namespace) -> int:
                 progress,
                 stage_reporter(),
                 baselines=_baselines_config(args) if args.baselines else None,
+                workers=workers,
             )
     except (DatasetError, CannotLearnError) as err:
         raise UserError(str(err)) from None

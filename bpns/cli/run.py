@@ -224,6 +224,7 @@ def learn(config: RunConfig) -> LearnedSkills:
         progress=progress,
         report=stage_reporter(),
         baselines=config.baselines,
+        workers=config.workers,
     )
     print_lines(learned_run)
     print(describe(learned_run.learned))

@@ -21,7 +21,7 @@ from bpns.learning.demo_checks import check_demonstrations
 from bpns.learning.given import BoundPolicy, BoundSampler, GivenSkill, match_given
 from bpns.learning.operators import SkillDataset, learn_operators
 from bpns.learning.partition import SegmentGroup, partition_segments
-from bpns.learning.policies import ScopeDims, learn_policy, scope_trajectories, train_policy
+from bpns.learning.policies import LearnedPolicy, ScopeDims, scope_trajectories, train_policy
 from bpns.learning.samplers import (
     CurrentStateSampler,
     LearnedSampler,
@@ -30,6 +30,7 @@ from bpns.learning.samplers import (
 )
 from bpns.learning.segmentation import segment_demonstrations
 from bpns.learning.sharing import shared_data
+from bpns.pools import make_pool
 from bpns.structs import Demonstration, Predicate, Segment, Skill, STRIPSOperator, Type
 
 STAGES = ("segment", "partition", "operators", "policies", "samplers")
@@ -127,13 +128,16 @@ def learn_skills(
     config: LearningConfig | None = None,
     report: Callable[[str], None] | None = None,
     given: Sequence[GivenSkill] = (),
+    workers: int = 1,
 ) -> LearnedSkills:
     """Learn neuro-symbolic skills from demonstrations (paper §4).
 
     ``report``, if given, receives one short progress message per stage and per skill
     (for a CLI progress display); learning itself prints nothing. ``given``: the
     environment's given skills (:mod:`bpns.learning.given`); a learned operator one of
-    them produces keeps its policy and sampler instead of trained networks.
+    them produces keeps its policy and sampler instead of trained networks. ``workers``
+    > 1 trains the skills' networks in that many processes (:func:`train_networks`: the
+    same weights, bit for bit, as in one process).
     """
     config = LearningConfig() if config is None else config
     say = report or (lambda message: None)
@@ -154,8 +158,10 @@ def learn_skills(
             groups, config.min_segment_fraction, config.anchor_parameters, config.index_names
         )
     say(f"{len(datasets)} operators from {len(groups)} groups")
-    skills: list[Skill] = []
+    skills: list[Skill | None] = []
     skill_stats: list[SkillStats] = []
+    jobs: list[NetworkJob] = []
+    job_datasets: list[SkillDataset] = []
     for k, dataset in enumerate(datasets):
         produced_by = match_given(dataset.operator, given)
         if produced_by is not None:  # a given skill: its policy and sampler, nothing trained
@@ -174,62 +180,65 @@ def learn_skills(
         shared = shared_data(datasets, k) if config.share_effect_data else None
         own = len(dataset)
         lent = "" if shared is None else f" + {len(shared.segments) - own} lent"
-        say(f"training {dataset.operator.name} ({k + 1}/{len(datasets)}, {own} segments{lent})")
+        say(f"preparing {dataset.operator.name} ({k + 1}/{len(datasets)}, {own} segments{lent})")
         with timer.stage("policies"):
             if shared is None:
                 scopes = scope_trajectories(dataset)
                 dims = ScopeDims.from_scopes(scopes, config.change_tolerance, dataset.scope_size)
-                policy = learn_policy(
-                    dataset, config, derive_seed(config.seed, k, _POLICY), scopes, dims
-                )
+                actions = [seg.actions for seg in dataset.segments]
             else:
                 scopes = [
                     np.stack([s.vec(objs) for s in seg.states])
                     for seg, objs in zip(shared.segments, shared.objects, strict=True)
                 ]
                 dims = ScopeDims.from_scopes(scopes, config.change_tolerance, objects=shared.scope)
-                policy = train_policy(
-                    scopes,
-                    [seg.actions for seg in shared.segments],
-                    dims,
-                    config.policy,
-                    derive_seed(config.seed, k, _POLICY),
-                    config.use_subgoals,
-                    config.near_goal_scale,
-                    config.linear_policy_base,
-                )
-        with timer.stage("samplers"):
-            sampler: LearnedSampler | CurrentStateSampler
-            if config.use_subgoals:
-                seed = derive_seed(config.seed, k, _SAMPLER)
+                actions = [seg.actions for seg in shared.segments]
+        sampler_data = None
+        negatives = 0
+        if config.use_subgoals:
+            with timer.stage("samplers"):
                 lenders = () if shared is None else shared.segments
-                gen_x, gen_y, cls_data = sampler_training_data(
+                sampler_data = sampler_training_data(
                     dataset,
                     scopes,
                     dims,
                     _other_segments(groups, dataset, exclude=lenders),
                     config.max_negative_bindings_per_segment,
-                    seed,
+                    derive_seed(config.seed, k, _SAMPLER),
                 )
-                sampler = train_sampler(
-                    gen_x,
-                    gen_y,
-                    cls_data,
-                    dims,
-                    config.generator,
-                    config.classifier,
-                    seed,
-                    config.max_rejection_tries,
-                    config.linear_sampler_base,
-                    config.novelty_floor if config.refuse_novel_starts else None,
-                )
-                negatives = int((cls_data[:, -1] == 0).sum())
-            else:
-                sampler, negatives = CurrentStateSampler(), 0
-        skills.append(Skill(dataset.operator, policy, sampler, _horizon(dataset, config)))
+                negatives = int((sampler_data[2][:, -1] == 0).sum())
+        jobs.append(
+            NetworkJob(
+                slot=len(skills),
+                config=config,
+                policy_seed=derive_seed(config.seed, k, _POLICY),
+                sampler_seed=derive_seed(config.seed, k, _SAMPLER),
+                scopes=tuple(scopes),
+                actions=tuple(actions),
+                dims=dims,
+                sampler_data=sampler_data,
+                threads=_torch_threads(),
+            )
+        )
+        job_datasets.append(dataset)
+        skills.append(None)  # trained below
         skill_stats.append(
             SkillStats(dataset.operator.name, len(dataset), _num_samples(dataset), negatives)
         )
+    parallel = workers > 1 and len(jobs) > 1
+    say(
+        f"training the networks of {len(jobs)} skills"
+        + (f" on {workers} workers" if parallel else "")
+    )
+    t0 = time.perf_counter()
+    trained = list(_train_all(jobs, workers if parallel else 1))
+    wall = time.perf_counter() - t0
+    busy = sum(t.policy_seconds + t.sampler_seconds for t in trained) or 1.0
+    for job, dataset, t in zip(jobs, job_datasets, trained, strict=True):
+        skills[job.slot] = Skill(dataset.operator, t.policy, t.sampler, _horizon(dataset, config))
+        # each stage gets its share of the training's wall time
+        for stage, seconds in (("policies", t.policy_seconds), ("samplers", t.sampler_seconds)):
+            timer.seconds[stage] = timer.seconds.get(stage, 0.0) + wall * seconds / busy
     kept = sum(len(d) for d in datasets)
     stats = LearningStats(
         num_demos=len(demos),
@@ -241,7 +250,85 @@ def learn_skills(
         skills=tuple(skill_stats),
         stage_seconds=tuple((s, timer.seconds.get(s, 0.0)) for s in STAGES),
     )
-    return LearnedSkills(tuple(skills), frozenset(predicates), config, stats)
+    return LearnedSkills(
+        tuple(s for s in skills if s is not None), frozenset(predicates), config, stats
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class NetworkJob:
+    """Everything one skill's networks are trained from: plain arrays and configs, so a
+    worker process can train them (the demonstrations stay in the parent)."""
+
+    slot: int  # the skill's place in the learned list
+    config: LearningConfig
+    policy_seed: int
+    sampler_seed: int
+    scopes: tuple[np.ndarray, ...]  # per segment: (steps + 1, scope size)
+    actions: tuple[np.ndarray, ...]  # per segment: (steps, action dim), the labels
+    dims: ScopeDims
+    sampler_data: tuple[np.ndarray, np.ndarray, np.ndarray] | None  # None: no subgoals
+    threads: int  # torch threads, as in the caller
+
+
+@dataclass(frozen=True, eq=False)
+class TrainedNetworks:
+    policy: LearnedPolicy
+    sampler: LearnedSampler | CurrentStateSampler
+    policy_seconds: float
+    sampler_seconds: float
+
+
+def train_networks(job: NetworkJob) -> TrainedNetworks:
+    """Train one skill's policy and sampler. Seeded and on ``job.threads`` torch threads,
+    so a worker process returns bit-identical weights to the caller's own process."""
+    import torch  # heavy; `bpns` commands that learn nothing never load it
+
+    torch.set_num_threads(job.threads)
+    c = job.config
+    t0 = time.perf_counter()
+    policy = train_policy(
+        job.scopes,
+        job.actions,
+        job.dims,
+        c.policy,
+        job.policy_seed,
+        c.use_subgoals,
+        c.near_goal_scale,
+        c.linear_policy_base,
+    )
+    t1 = time.perf_counter()
+    sampler: LearnedSampler | CurrentStateSampler = CurrentStateSampler()
+    if job.sampler_data is not None:
+        gen_x, gen_y, cls_data = job.sampler_data
+        sampler = train_sampler(
+            gen_x,
+            gen_y,
+            cls_data,
+            job.dims,
+            c.generator,
+            c.classifier,
+            job.sampler_seed,
+            c.max_rejection_tries,
+            c.linear_sampler_base,
+            c.novelty_floor if c.refuse_novel_starts else None,
+        )
+    return TrainedNetworks(policy, sampler, t1 - t0, time.perf_counter() - t1)
+
+
+def _torch_threads() -> int:
+    import torch
+
+    return torch.get_num_threads()
+
+
+def _train_all(jobs: Sequence[NetworkJob], workers: int) -> Iterator[TrainedNetworks]:
+    """Every job's networks, in order: in this process, or in ``workers`` processes."""
+    if workers <= 1:
+        yield from map(train_networks, jobs)
+        return
+    with make_pool(workers) as pool:
+        yield from pool.map(train_networks, jobs)
 
 
 def _other_segments(
