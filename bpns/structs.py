@@ -268,8 +268,16 @@ class SubgoalPolicy(Protocol):
     ) -> np.ndarray: ...
 
 
+class NoSubgoal(Exception):
+    """Raised by a subgoal sampler that has no subgoal worth simulating from this state
+    (a hand-written sampler: beyond the arm's reach; a learned one: every draw lies where
+    no demonstration went, :mod:`bpns.learning.support`). The planner counts a failed
+    sample without simulating anything."""
+
+
 class SubgoalSampler(Protocol):
-    """sigma(objects, state) -> absolute subgoal scope vector, drawn with ``rng``."""
+    """sigma(objects, state) -> absolute subgoal scope vector, drawn with ``rng``. A
+    sampler with no subgoal worth simulating from ``state`` raises :class:`NoSubgoal`."""
 
     def __call__(
         self, state: State, objects: Sequence[Object], rng: np.random.Generator

@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 import torch
 
-from bpns.execution.failures import NoSubgoal
 from bpns.learning.config import LearningConfig, MLPConfig
 from bpns.learning.mlp import MLPParams
 from bpns.learning.operators import SkillDataset, learn_operators
@@ -17,7 +16,7 @@ from bpns.learning.samplers import (
     sampler_training_data,
 )
 from bpns.learning.segmentation import segment_demonstrations
-from bpns.structs import GroundAtom, Predicate, Segment
+from bpns.structs import GroundAtom, NoSubgoal, Predicate, Segment
 from tests import toy_learning as toy
 
 B0, B1 = toy.blocks(2)

@@ -4,11 +4,10 @@ import numpy as np
 import pytest
 
 from bpns.env.abstraction import abstract
-from bpns.execution.failures import NoSubgoal
 from bpns.planning.config import PlanningConfig
 from bpns.planning.refinement import refine
 from bpns.planning.search import AbstractPlan
-from bpns.structs import LiftedAtom, Skill, STRIPSOperator
+from bpns.structs import LiftedAtom, NoSubgoal, Skill, STRIPSOperator
 from tests import toy_planning as toy
 
 ENV = toy.ToyStickButton()

@@ -29,10 +29,10 @@ from bpns.execution.executor import (
     completion_test,
     expected_after,
 )
-from bpns.execution.failures import NOT_EXECUTED, FailureReason, NoSubgoal
+from bpns.execution.failures import NOT_EXECUTED, FailureReason
 from bpns.execution.rollouts import REACHED, rollout_of
 from bpns.planning.config import PlanningConfig
-from bpns.structs import GroundAtom, Object, Skill, State, Task
+from bpns.structs import GroundAtom, NoSubgoal, Object, Skill, State, Task
 
 
 @dataclass(frozen=True, eq=False)

@@ -9,13 +9,6 @@ from __future__ import annotations
 import enum
 
 
-class NoSubgoal(Exception):
-    """Raised by a subgoal sampler that has no subgoal worth simulating from this state
-    (a hand-written sampler: beyond the arm's reach; a learned one: every draw lies where
-    no demonstration went, :mod:`bpns.learning.support`). The planner counts a failed
-    sample without simulating anything."""
-
-
 class FailureReason(str, enum.Enum):
     # a whole attempt at a task
     TIMEOUT = "timeout"  # the wall-clock budget ran out

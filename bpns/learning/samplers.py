@@ -31,7 +31,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bpns.execution.failures import NoSubgoal
 from bpns.learning.config import LearningConfig, MLPConfig
 from bpns.learning.linear import LinearBase
 from bpns.learning.mlp import (
@@ -43,14 +42,14 @@ from bpns.learning.mlp import (
 )
 from bpns.learning.operators import SkillDataset, applicable_bindings
 from bpns.learning.policies import ScopeDims, scope_trajectories
-from bpns.structs import Object, Segment, State, STRIPSOperator
+from bpns.structs import NoSubgoal, Object, Segment, State, STRIPSOperator
 
 
 class LearnedSampler:
     """SubgoalSampler: draw relative subgoals from the generator, keep the first the
     classifier accepts (prob > 0.5), else the last of ``max_tries``; return it absolute.
     With a ``base`` the generator's mean is ``base(s)`` plus the network's. With a
-    ``novelty`` test it refuses novel starts with :class:`~bpns.execution.failures.NoSubgoal`,
+    ``novelty`` test it refuses novel starts with :class:`~bpns.structs.NoSubgoal`,
     which the planner counts as a failed sample without simulating it."""
 
     def __init__(

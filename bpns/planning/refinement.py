@@ -29,12 +29,12 @@ from bpns.execution.executor import (
     completion_test,
     state_features,
 )
-from bpns.execution.failures import NOT_EXECUTED, FailureReason, NoSubgoal
+from bpns.execution.failures import NOT_EXECUTED, FailureReason
 from bpns.execution.rollouts import REACHED, Rollout, further, rollout_of
 from bpns.planning.config import PlanningConfig
 from bpns.planning.nogoods import NogoodMemo, PrefixCache, StepKey
 from bpns.planning.search import AbstractPlan
-from bpns.structs import GroundOperator, Skill, State, Task
+from bpns.structs import GroundOperator, NoSubgoal, Skill, State, Task
 
 
 @dataclass(frozen=True)

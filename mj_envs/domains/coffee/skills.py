@@ -17,7 +17,7 @@ PourFromOtherCup, Twist, PickPotAfterTwist. As simulated:
 Subgoals are absolute scope vectors; policies read their parameters from them (the knob
 wrist, the turned rotation, the pot's place on the plate, the press point, the pouring
 tilt). Policies are stateless functions of (state, subgoal). Samplers know the rules
-(they are the oracle): they raise :class:`bpns.execution.failures.NoSubgoal` for a subgoal no
+(they are the oracle): they raise :class:`bpns.structs.NoSubgoal` for a subgoal no
 motion achieves (e.g. a handle turned beyond 60 deg), which the planner counts as a
 failed sample without simulating anything.
 """
@@ -28,8 +28,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.execution.failures import NoSubgoal
-from bpns.structs import LiftedAtom, Object, Skill, State, STRIPSOperator, Variable
+from bpns.structs import LiftedAtom, NoSubgoal, Object, Skill, State, STRIPSOperator, Variable
 from mj_envs.domains.coffee.behaviours import (
     APPROACH_CLEARANCE,
     FREE_Z,

@@ -11,7 +11,7 @@ Subgoals are absolute scope vectors; policies read the hand's target xy from the
 part (``subgoal[0:2]``): the press point for a hand press, the hand position that puts
 the tip on the button for a stick press, the grasp point for a pick. Policies are
 stateless functions of (state, subgoal). Samplers know the arm's reach (they are the
-oracle): a sampler raises :class:`bpns.execution.failures.NoSubgoal` for a subgoal no motion can
+oracle): a sampler raises :class:`bpns.structs.NoSubgoal` for a subgoal no motion can
 achieve, which the planner counts as a failed sample without simulating anything.
 """
 
@@ -21,8 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.execution.failures import NoSubgoal
-from bpns.structs import LiftedAtom, Object, Skill, State, STRIPSOperator, Variable
+from bpns.structs import LiftedAtom, NoSubgoal, Object, Skill, State, STRIPSOperator, Variable
 from mj_envs.domains.stick_button.behaviours import (
     FINGER_REACH,
     GRASP_MAX,
