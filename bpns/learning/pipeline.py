@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Collection, Iterator, Sequence
+from concurrent.futures import Executor, Future
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -162,53 +163,61 @@ def learn_skills(
     skill_stats: list[SkillStats] = []
     jobs: list[NetworkJob] = []
     job_datasets: list[SkillDataset] = []
-    for k, dataset in enumerate(datasets):
-        produced_by = match_given(dataset.operator, given)
-        if produced_by is not None:  # a given skill: its policy and sampler, nothing trained
-            g, binding = produced_by
-            say(f"{dataset.operator.name}: given skill {g.name}")
-            skills.append(
-                Skill(
-                    dataset.operator,
-                    BoundPolicy(g, binding),
-                    BoundSampler(g, binding),
-                    _horizon(dataset, config),
+    learnable = sum(match_given(d.operator, given) is None for d in datasets)
+    # each skill's networks start training as soon as its data is ready
+    with _Trainer(workers if learnable > 1 else 1) as trainer:
+        for k, dataset in enumerate(datasets):
+            produced_by = match_given(dataset.operator, given)
+            if produced_by is not None:  # a given skill: its policy and sampler, nothing trained
+                g, binding = produced_by
+                say(f"{dataset.operator.name}: given skill {g.name}")
+                skills.append(
+                    Skill(
+                        dataset.operator,
+                        BoundPolicy(g, binding),
+                        BoundSampler(g, binding),
+                        _horizon(dataset, config),
+                    )
                 )
+                skill_stats.append(SkillStats(dataset.operator.name, len(dataset), 0, 0))
+                continue
+            shared = shared_data(datasets, k) if config.share_effect_data else None
+            own = len(dataset)
+            lent = "" if shared is None else f" + {len(shared.segments) - own} lent"
+            say(
+                f"preparing {dataset.operator.name} ({k + 1}/{len(datasets)}, {own} segments{lent})"
             )
-            skill_stats.append(SkillStats(dataset.operator.name, len(dataset), 0, 0))
-            continue
-        shared = shared_data(datasets, k) if config.share_effect_data else None
-        own = len(dataset)
-        lent = "" if shared is None else f" + {len(shared.segments) - own} lent"
-        say(f"preparing {dataset.operator.name} ({k + 1}/{len(datasets)}, {own} segments{lent})")
-        with timer.stage("policies"):
-            if shared is None:
-                scopes = scope_trajectories(dataset)
-                dims = ScopeDims.from_scopes(scopes, config.change_tolerance, dataset.scope_size)
-                actions = [seg.actions for seg in dataset.segments]
-            else:
-                scopes = [
-                    np.stack([s.vec(objs) for s in seg.states])
-                    for seg, objs in zip(shared.segments, shared.objects, strict=True)
-                ]
-                dims = ScopeDims.from_scopes(scopes, config.change_tolerance, objects=shared.scope)
-                actions = [seg.actions for seg in shared.segments]
-        sampler_data = None
-        negatives = 0
-        if config.use_subgoals:
-            with timer.stage("samplers"):
-                lenders = () if shared is None else shared.segments
-                sampler_data = sampler_training_data(
-                    dataset,
-                    scopes,
-                    dims,
-                    _other_segments(groups, dataset, exclude=lenders),
-                    config.max_negative_bindings_per_segment,
-                    derive_seed(config.seed, k, _SAMPLER),
-                )
-                negatives = int((sampler_data[2][:, -1] == 0).sum())
-        jobs.append(
-            NetworkJob(
+            with timer.stage("policies"):
+                if shared is None:
+                    scopes = scope_trajectories(dataset)
+                    dims = ScopeDims.from_scopes(
+                        scopes, config.change_tolerance, dataset.scope_size
+                    )
+                    actions = [seg.actions for seg in dataset.segments]
+                else:
+                    scopes = [
+                        np.stack([s.vec(objs) for s in seg.states])
+                        for seg, objs in zip(shared.segments, shared.objects, strict=True)
+                    ]
+                    dims = ScopeDims.from_scopes(
+                        scopes, config.change_tolerance, objects=shared.scope
+                    )
+                    actions = [seg.actions for seg in shared.segments]
+            sampler_data = None
+            negatives = 0
+            if config.use_subgoals:
+                with timer.stage("samplers"):
+                    lenders = () if shared is None else shared.segments
+                    sampler_data = sampler_training_data(
+                        dataset,
+                        scopes,
+                        dims,
+                        _other_segments(groups, dataset, exclude=lenders),
+                        config.max_negative_bindings_per_segment,
+                        derive_seed(config.seed, k, _SAMPLER),
+                    )
+                    negatives = int((sampler_data[2][:, -1] == 0).sum())
+            job = NetworkJob(
                 slot=len(skills),
                 config=config,
                 policy_seed=derive_seed(config.seed, k, _POLICY),
@@ -219,20 +228,16 @@ def learn_skills(
                 sampler_data=sampler_data,
                 threads=_torch_threads(),
             )
-        )
-        job_datasets.append(dataset)
-        skills.append(None)  # trained below
-        skill_stats.append(
-            SkillStats(dataset.operator.name, len(dataset), _num_samples(dataset), negatives)
-        )
-    parallel = workers > 1 and len(jobs) > 1
-    say(
-        f"training the networks of {len(jobs)} skills"
-        + (f" on {workers} workers" if parallel else "")
-    )
-    t0 = time.perf_counter()
-    trained = list(_train_all(jobs, workers if parallel else 1))
-    wall = time.perf_counter() - t0
+            jobs.append(job)
+            job_datasets.append(dataset)
+            skills.append(None)  # trained below
+            skill_stats.append(
+                SkillStats(dataset.operator.name, len(dataset), _num_samples(dataset), negatives)
+            )
+            trainer.submit(job)
+        say(f"training the networks of {len(jobs)} skills")
+        trained = trainer.results()
+    wall = trainer.seconds
     busy = sum(t.policy_seconds + t.sampler_seconds for t in trained) or 1.0
     for job, dataset, t in zip(jobs, job_datasets, trained, strict=True):
         skills[job.slot] = Skill(dataset.operator, t.policy, t.sampler, _horizon(dataset, config))
@@ -322,13 +327,41 @@ def _torch_threads() -> int:
     return torch.get_num_threads()
 
 
-def _train_all(jobs: Sequence[NetworkJob], workers: int) -> Iterator[TrainedNetworks]:
-    """Every job's networks, in order: in this process, or in ``workers`` processes."""
-    if workers <= 1:
-        yield from map(train_networks, jobs)
-        return
-    with make_pool(workers) as pool:
-        yield from pool.map(train_networks, jobs)
+class _Trainer:
+    """Trains submitted jobs in this process (one worker: at once, in order) or in a pool
+    of ``workers`` processes (in the background, while the caller prepares the next job).
+    ``seconds``: the wall time the caller spent training or waiting for the training."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = workers
+        self.seconds = 0.0
+        self._pool: Executor | None = None
+        self._pending: list[Future[TrainedNetworks] | TrainedNetworks] = []
+
+    def __enter__(self) -> _Trainer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+    def submit(self, job: NetworkJob) -> None:
+        t0 = time.perf_counter()
+        if self.workers <= 1:
+            self._pending.append(train_networks(job))
+        else:
+            if self._pool is None:
+                self._pool = make_pool(self.workers)
+            self._pending.append(self._pool.submit(train_networks, job))
+        self.seconds += time.perf_counter() - t0
+
+    def results(self) -> list[TrainedNetworks]:
+        """Every submitted job's networks, in submission order."""
+        t0 = time.perf_counter()
+        out = [p.result() if isinstance(p, Future) else p for p in self._pending]
+        self.seconds += time.perf_counter() - t0
+        return out
 
 
 def _other_segments(
