@@ -11,7 +11,7 @@ from bpns.planning.nogoods import NogoodMemo, PrefixCache
 from tests import toy_planning as toy
 from tests.test_planning_refinement import ENV, STICK_PLAN, by_op, skeleton
 
-PLAIN = PlanningConfig(nogood_atol=None, reuse_prefixes=False)
+PLAIN = PlanningConfig(nogood_atol=None, reuse_prefixes=False, set_aside_after=None)
 
 
 def test_memo_refutes_only_states_within_its_tolerance():
@@ -72,7 +72,7 @@ def test_nogoods_turn_exponential_backtracking_into_linear_work(atol):
         skills,
         task,
         ENV,
-        PlanningConfig(n_samples=4, nogood_atol=None),
+        PlanningConfig(n_samples=4, nogood_atol=None, set_aside_after=None),
         np.random.default_rng(0),
     )
     memo = NogoodMemo(atol)

@@ -73,6 +73,10 @@ def tolerance_or_off(text: str) -> float | str:
     return text if text == "off" else nonnegative_float(text)
 
 
+def positive_or_off(text: str) -> int | str:
+    return text if text == "off" else positive(text)
+
+
 def default_workers() -> int:
     return max(1, (os.cpu_count() or 1))
 

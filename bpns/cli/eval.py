@@ -16,6 +16,7 @@ from bpns.cli.common import (
     path_arg,
     positive,
     positive_float,
+    positive_or_off,
     report_evaluation,
     tolerance_or_off,
 )
@@ -58,6 +59,13 @@ def configure(p: argparse.ArgumentParser) -> None:
         type=tolerance_or_off,
         help="tolerance (feature units) of refuted-state matching in refinement, or 'off' "
         "for the paper's plain backtracking (default: the env's or 0.005)",
+    )
+    p.add_argument(
+        "--set-aside-after",
+        type=positive_or_off,
+        help="set an abstract plan aside (refined again after the others) once one step "
+        "failed every sample from this many arrivals, or 'off' for the paper's "
+        "backtracking (default: the env's or 3)",
     )
     p.add_argument("--out", type=path_arg, help="output directory (results.json, results.md)")
     p.add_argument("--workers", type=positive, default=default_workers())
@@ -143,9 +151,12 @@ def run(args: argparse.Namespace) -> int:
             n_abstract=args.n_abstract,
             n_samples=args.n_samples,
             nogood_atol=None if args.nogood_atol == "off" else args.nogood_atol,
+            set_aside_after=None if args.set_aside_after == "off" else args.set_aside_after,
         )
         if args.nogood_atol == "off":
             base = dataclasses.replace(base, nogood_atol=None)
+        if args.set_aside_after == "off":
+            base = dataclasses.replace(base, set_aside_after=None)
     except (TypeError, ValueError) as err:
         raise UserError(f"bad planning settings: {err}") from None
     reports = evaluate_approaches(

@@ -15,6 +15,7 @@ class FailureReason(str, enum.Enum):
     NO_ABSTRACT_PLAN = "no_abstract_plan"  # the abstract search found no plan at all
     REFINEMENT_FAILED = "refinement_failed"  # every abstract plan tried failed to refine
     EXHAUSTED = "exhausted"  # one abstract plan: every sample of its first step failed
+    SET_ASIDE = "set_aside"  # one abstract plan: a step failed from too many arrivals
     NO_SKILL = "no_skill"  # a metacontroller found no ground skill to execute
     # one execution of a skill (or of a policy acting every step)
     SAMPLER_ERROR = "sampler_error"  # the subgoal sampler raised
@@ -40,6 +41,8 @@ MEANING: dict[FailureReason, str] = {
     FailureReason.NO_ABSTRACT_PLAN: "the abstract search found no plan at all",
     FailureReason.REFINEMENT_FAILED: "every abstract plan tried failed to refine",
     FailureReason.EXHAUSTED: "every sample of the plan's first step failed",
+    FailureReason.SET_ASIDE: "one step failed every sample from several different arrivals: "
+    "the plan was set aside for the other abstract plans (refined again after them)",
     FailureReason.NO_SKILL: "no ground skill was left to execute",
     FailureReason.SAMPLER_ERROR: "the subgoal sampler raised",
     FailureReason.SAMPLER_NONFINITE: "the subgoal sampler returned NaN/inf",
@@ -63,5 +66,6 @@ NOT_EXECUTED: frozenset[FailureReason] = frozenset(
         FailureReason.NO_SUBGOAL,
         FailureReason.NOGOOD,
         FailureReason.EXHAUSTED,
+        FailureReason.SET_ASIDE,
     }
 )

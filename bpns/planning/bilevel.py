@@ -1,5 +1,10 @@
 """Bilevel planning (paper Alg. 1): lazily generated abstract plans, each refined in turn.
 
+A skeleton whose refinement is set aside (one step failed from several arrivals, see
+``PlanningConfig.set_aside_after``) is refined again, without that limit, after the
+search has produced its last skeleton: setting aside reorders the work, it never drops
+a skeleton the paper's planner would have refined.
+
 ``plan`` never lets a timeout escape: once the wall-clock budget is spent (checked in the
 grounding and search loops and before every simulation step) it returns a failed
 :class:`PlanResult` with reason ``"timeout"``.
@@ -7,6 +12,7 @@ grounding and search loops and before every simulation step) it returns a failed
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections import Counter
 from collections.abc import Sequence
@@ -20,7 +26,7 @@ from bpns.execution.failures import FailureReason
 from bpns.execution.rollouts import Rollout, further
 from bpns.planning.config import PlanningConfig
 from bpns.planning.heuristics import make_heuristic
-from bpns.planning.nogoods import NogoodMemo, PrefixCache
+from bpns.planning.nogoods import NogoodMemo, PrefixCache, SetAsidePrefixes
 from bpns.planning.refinement import RefinementStats, refine
 from bpns.planning.search import STRATEGIES, AbstractPlan, SearchStats, skeletons
 from bpns.planning.strips import SearchTimeout, ground
@@ -138,14 +144,20 @@ def plan(
             deadline=deadline,
             stats=acc.search,
         )
+        set_aside: list[AbstractPlan] = []  # refined again, without the limit, at the end
+        doomed = SetAsidePrefixes()
+        patient = dataclasses.replace(config, set_aside_after=None)
         while True:
             t0 = time.monotonic()
             try:
                 skeleton = next(generator, None)
             finally:
                 acc.search_time += time.monotonic() - t0
+            refining = config
             if skeleton is None:
-                break
+                if not set_aside:
+                    break
+                skeleton, refining = set_aside.pop(0), patient
             acc.plans_tried += 1
             t0 = time.monotonic()
             ref = refine(
@@ -153,11 +165,12 @@ def plan(
                 [by_operator[op.operator] for op in skeleton.operators],
                 task,
                 env,
-                config,
+                refining,
                 rng,
                 deadline,
                 memo,
                 prefixes,
+                doomed,
             )
             acc.refinement_time += time.monotonic() - t0
             acc.add(ref.stats, skeleton, ref.reason)
@@ -176,6 +189,8 @@ def plan(
                 )
             if ref.reason is FailureReason.TIMEOUT:
                 raise SearchTimeout
+            if ref.reason is FailureReason.SET_ASIDE:
+                set_aside.append(skeleton)
     except SearchTimeout:
         return acc.result(False, task, action_dim, FailureReason.TIMEOUT, None)
     reason = FailureReason.REFINEMENT_FAILED if acc.plans_tried else FailureReason.NO_ABSTRACT_PLAN

@@ -43,6 +43,13 @@ class PlanningConfig:
                        arrival from a state whose features all lie within this tolerance
                        of a refuted one (see ``bpns.planning.nogoods``); None is the
                        paper's plain chronological backtracking.
+    set_aside_after:   set a skeleton aside once one of its steps has failed every one of
+                       its ``n_samples`` samples from this many different arrivals (states
+                       the steps before it left), and refine the next skeleton; skeletons
+                       set aside are refined again, without the limit, once the search
+                       has no other skeleton left. Backtracking otherwise tries every
+                       combination of the earlier steps' samples before it gives up on a
+                       step that fails whatever they do. None: never (the paper's).
     reuse_prefixes:    start refining a skeleton after the deepest prefix an earlier
                        skeleton of the same call already refined (same steps, same
                        expected abstract states) instead of simulating it again.
@@ -63,6 +70,7 @@ class PlanningConfig:
     max_state_repeats: int = 0
     end_on_contact_change: bool = False
     nogood_atol: float | None = 5e-3
+    set_aside_after: int | None = 3
     reuse_prefixes: bool = True
 
     def __post_init__(self) -> None:
@@ -83,6 +91,8 @@ class PlanningConfig:
             raise ValueError(f"timeout must be a finite number of seconds > 0, got {self.timeout}")
         if self.nogood_atol is not None and not 0 <= self.nogood_atol < math.inf:
             raise ValueError(f"nogood_atol must be >= 0 or None, got {self.nogood_atol}")
+        if self.set_aside_after is not None and self.set_aside_after < 1:
+            raise ValueError(f"set_aside_after must be >= 1 or None, got {self.set_aside_after}")
         if self.max_state_repeats < 0:
             raise ValueError(f"max_state_repeats must be >= 0, got {self.max_state_repeats}")
         if not 0 <= self.stuck_atol < math.inf:

@@ -92,3 +92,30 @@ class PrefixCache:
 
     def add(self, keys: list[Hashable], segments: list) -> None:
         self._prefixes.setdefault(tuple(keys), list(segments))
+
+
+class SetAsidePrefixes:
+    """Skeleton prefixes set aside: their last step failed every sample from
+    ``PlanningConfig.set_aside_after`` different arrivals.
+
+    A step's success depends only on the steps before it, so another skeleton that
+    starts with the same steps (the same expected abstract states included) would fail
+    there the same way: it is set aside at once, without simulation. Skeletons that
+    differ only after such a step are common (the same plan with its last steps in
+    another order), and each would otherwise pay for its own arrivals.
+    """
+
+    def __init__(self) -> None:
+        self._prefixes: set[tuple[Hashable, ...]] = set()
+        self.hits = 0
+
+    def add(self, keys: list[Hashable]) -> None:
+        self._prefixes.add(tuple(keys))
+
+    def covering(self, keys: list[Hashable]) -> int | None:
+        """The index of the last step of the shortest set-aside prefix of ``keys``."""
+        for k in range(1, len(keys) + 1):
+            if tuple(keys[:k]) in self._prefixes:
+                self.hits += 1
+                return k - 1
+        return None

@@ -5,7 +5,9 @@ the exact simulator (:class:`bpns.execution.executor.SkillExecutor`) until the s
 abstract state holds (and the operator's delete effects no longer do). A sample fails
 when the sampler misbehaves (exception or non-finite output) or the execution fails
 (skill horizon, stuck, task horizon, policy errors: see :mod:`bpns.execution.executor`).
-After ``n_samples`` failed samples at step i we backtrack and resample step i - 1.
+After ``n_samples`` failed samples at step i we backtrack and resample step i - 1; once
+step i has failed that way from ``config.set_aside_after`` different arrivals the
+skeleton is set aside (:func:`bpns.planning.bilevel.plan` refines it again later).
 
 Only the atoms the step's test needs are evaluated, once per simulated state, and adds
 (the atoms most likely still false) first, so the test usually stops at the first atom.
@@ -32,7 +34,7 @@ from bpns.execution.executor import (
 from bpns.execution.failures import NOT_EXECUTED, FailureReason
 from bpns.execution.rollouts import REACHED, Rollout, further, rollout_of
 from bpns.planning.config import PlanningConfig
-from bpns.planning.nogoods import NogoodMemo, PrefixCache, StepKey
+from bpns.planning.nogoods import NogoodMemo, PrefixCache, SetAsidePrefixes, StepKey
 from bpns.planning.search import AbstractPlan
 from bpns.structs import GroundOperator, NoSubgoal, Skill, State, Task
 
@@ -59,7 +61,7 @@ class RefinementResult:
     On success ``actions`` (k x action_dim) take ``states[0]`` = the task's initial state
     to ``states[-1]``; step i of the skeleton used ``actions[step_starts[i]:step_starts[i+1]]``
     with ``subgoals[i]``. On failure the sequences are empty and ``reason`` says why
-    (``EXHAUSTED`` or ``TIMEOUT``).
+    (``EXHAUSTED``, ``SET_ASIDE`` or ``TIMEOUT``).
     """
 
     success: bool
@@ -130,6 +132,7 @@ class _Step:
     tries: int = 0  # samples since the current arrival at the step
     successes: int = 0  # successful ones among them
     horizon_hit: bool = False  # a failure that depends on the prefix's length
+    refuted_arrivals: int = 0  # arrivals from which every sample failed (never reset)
     # successful subgoals since the current arrival (their continuations failed whenever
     # refinement is back here); None without a nogood memo
     refuted: list[np.ndarray] | None = None
@@ -220,6 +223,8 @@ def _exhausted(
     from it) refuted from its start, or refutes a fresh arrival the memo already knows."""
     step = steps[i]
     if step.tries >= n_samples:
+        if step.successes == 0 and not step.horizon_hit:
+            step.refuted_arrivals += 1
         if memo is not None and not step.horizon_hit:
             suffix = tuple(s.key for s in steps[i:])
             memo.add(step.key if step.successes == 0 else suffix, _flat(step.start))
@@ -230,6 +235,13 @@ def _exhausted(
             counters.failed(i, FailureReason.NOGOOD)
             return True
     return False
+
+
+def _set_aside(step: _Step, after: int | None) -> bool:
+    """Give up on the skeleton for now? Its step failed every sample from ``after``
+    different arrivals: what the earlier steps' samples change does not decide it, so
+    resampling them in every combination would mostly simulate failures."""
+    return after is not None and step.refuted_arrivals >= after
 
 
 def _backtrack(steps: list[_Step], i: int) -> None:
@@ -265,6 +277,7 @@ def refine(
     deadline: float | None = None,
     memo: NogoodMemo | None = None,
     prefixes: PrefixCache | None = None,
+    set_aside: SetAsidePrefixes | None = None,
 ) -> RefinementResult:
     """Backtracking search over subgoal samples for ``plan``.
 
@@ -273,14 +286,22 @@ def refine(
     ``time.monotonic()`` value, checked before every simulation step. ``memo`` (shared by
     the skeletons of one ``plan`` call) refutes steps and suffixes already refuted from a
     matching state and records new refutations (see :mod:`bpns.planning.nogoods`);
-    ``prefixes`` lets the refinement start after the deepest prefix already refined.
+    ``prefixes`` lets the refinement start after the deepest prefix already refined;
+    ``set_aside`` (with ``config.set_aside_after``) sets the skeleton aside at once when
+    it starts with a prefix set aside before, and records the prefixes it sets aside.
     """
     steps = _steps(plan, skills, task, memo)
     n = len(steps)
     counters = _Counters(n)
     executor = SkillExecutor(env, task, RolloutConfig.of(config), deadline)
+    keys = [s.key for s in steps]
+    limited = set_aside is not None and config.set_aside_after is not None
+    doomed = set_aside.covering(keys) if limited else None
+    if doomed is not None:
+        counters.failed(doomed, FailureReason.SET_ASIDE)
+        return _failed(FailureReason.SET_ASIDE, counters.freeze(0), executor.low.size, None)
     i = 0
-    for seg in prefixes.longest([s.key for s in steps]) if prefixes is not None else ():
+    for seg in prefixes.longest(keys) if prefixes is not None else ():
         steps[i].tries = 1
         i = _advance(steps, i, seg)
     reason: FailureReason | None = None
@@ -292,6 +313,11 @@ def refine(
                 _backtrack(steps, i)
                 if i == 0:
                     reason = FailureReason.EXHAUSTED
+                    break
+                if _set_aside(step, config.set_aside_after):
+                    reason = FailureReason.SET_ASIDE
+                    if set_aside is not None:
+                        set_aside.add(keys[: i + 1])
                     break
                 i -= 1
                 counters.backtracks += 1
@@ -308,7 +334,7 @@ def refine(
             counters.step_successes[i] += 1
             i = _advance(steps, i, out)
             if prefixes is not None:
-                prefixes.add([s.key for s in steps[:i]], [s.segment for s in steps[:i]])
+                prefixes.add(keys[:i], [s.segment for s in steps[:i]])
     except ExecutionTimeout:
         counters.failed(min(i, n - 1), FailureReason.TIMEOUT)
         reason = FailureReason.TIMEOUT
@@ -316,10 +342,16 @@ def refine(
             furthest = further(furthest, _attempt(steps, i, executor, FailureReason.TIMEOUT))
     stats = counters.freeze(executor.sim_steps)
     if reason is not None:
-        return RefinementResult(
-            False, np.zeros((0, executor.low.size)), (), (), (), (), (), reason, stats, furthest
-        )
+        return _failed(reason, stats, executor.low.size, furthest)
     return _refined(steps, skills, plan, task, executor.low.size, stats)
+
+
+def _failed(
+    reason: FailureReason, stats: RefinementStats, action_dim: int, furthest: Rollout | None
+) -> RefinementResult:
+    return RefinementResult(
+        False, np.zeros((0, action_dim)), (), (), (), (), (), reason, stats, furthest
+    )
 
 
 def _refined(
