@@ -22,6 +22,21 @@ class Type:
 
     name: str
     feature_names: tuple[str, ...]
+    # predicates read features by name millions of times while a dataset is segmented:
+    # the index and the hash are computed once (again on unpickling: string hashes
+    # differ between processes)
+    _index: dict[str, int] = field(init=False, repr=False, compare=False)
+    _hash: int = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_index", {f: i for i, f in enumerate(self.feature_names)})
+        object.__setattr__(self, "_hash", hash((self.name, self.feature_names)))
+
+    def __hash__(self) -> int:
+        return self._hash
+
+    def __reduce__(self) -> tuple[type[Type], tuple[str, tuple[str, ...]]]:
+        return (Type, (self.name, self.feature_names))
 
     @property
     def dim(self) -> int:
@@ -29,8 +44,8 @@ class Type:
 
     def feature_index(self, feature: str) -> int:
         try:
-            return self.feature_names.index(feature)
-        except ValueError:
+            return self._index[feature]
+        except KeyError:
             raise KeyError(
                 f"type {self.name!r} has no feature {feature!r}; it has {self.feature_names}"
             ) from None
@@ -114,7 +129,14 @@ class State:
         return np.concatenate([self.data[o] for o in objects])
 
     def objects_of_type(self, type_: Type) -> tuple[Object, ...]:
-        return tuple(o for o in self.objects if o.type == type_)
+        return self._by_type.get(type_, ())
+
+    @functools.cached_property
+    def _by_type(self) -> dict[Type, tuple[Object, ...]]:
+        out: dict[Type, list[Object]] = {}
+        for o in self.objects:
+            out.setdefault(o.type, []).append(o)
+        return {t: tuple(objs) for t, objs in out.items()}
 
     def allclose(self, other: State, atol: float = 0.0) -> bool:
         """Feature-wise equality (exact by default)."""
