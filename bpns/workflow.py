@@ -8,6 +8,7 @@ same way whichever command ran it.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
@@ -236,4 +237,6 @@ def learn_to_directory(
 
         # after the skills: saving them replaces `out`
         baseline_seconds = learn_baselines_into(out, env, demos, learned, baselines, report)
+    # the segments hold every demonstration's states: not kept through what comes next
+    learned = dataclasses.replace(learned, segments=())
     return LearnedRun(learned, env.name, n, load_seconds, out, baseline_seconds)

@@ -121,8 +121,9 @@ def learn_baselines(
     """Learn the baselines ``config`` asks for. ``predicates`` and ``types`` are the
     environment's declared ones (they fix the graph vocabulary); ``skills`` are the
     BPNS skills learned from the same ``demos`` (their operators label the
-    metacontroller's data; their learning config gives segmentation, the
-    No-Subgoal skills' settings and, unless ``config.seed`` is set, the GNNs' seed)."""
+    metacontroller's data, the segments they were learned from, ``skills.segments``;
+    their learning config gives the No-Subgoal skills' settings and, unless
+    ``config.seed`` is set, the GNNs' seed)."""
     config = BaselinesConfig() if config is None else config
     config = config.seeded(skills.config.seed if config.seed is None else config.seed)
     say = report or (lambda message: None)
@@ -133,9 +134,7 @@ def learn_baselines(
     if config.meta is not None:
         say("GNN Meta: labelling segments with the learned operators")
         t0 = time.perf_counter()
-        examples, skipped = metacontroller_examples(
-            demos, predicates, contact_predicates, skills.operators, skills.config.settle_steps
-        )
+        examples, skipped = metacontroller_examples(demos, skills.segments, skills.operators)
         say(f"GNN Meta: training on {len(examples)} decisions")
         meta, meta_stats = train_metacontroller(vocab, skills.operators, examples, config.meta)
         seconds["gnn_meta"] = time.perf_counter() - t0

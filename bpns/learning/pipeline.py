@@ -29,7 +29,7 @@ from bpns.learning.samplers import (
     sampler_training_data,
     train_sampler,
 )
-from bpns.learning.segmentation import segment_demonstrations
+from bpns.learning.segmentation import segment_demonstration
 from bpns.learning.sharing import shared_data
 from bpns.pools import make_pool
 from bpns.structs import Demonstration, Predicate, Segment, Skill, STRIPSOperator, Type
@@ -82,6 +82,10 @@ class LearnedSkills:
     predicates: frozenset[Predicate]
     config: LearningConfig
     stats: LearningStats | None = None
+    #: per demonstration, in order, the segments the skills were learned from, so the
+    #: baselines label the same segmentation instead of redoing it; () for skills loaded
+    #: from disk or built by hand (never saved: it holds the demonstrations' states)
+    segments: tuple[tuple[Segment, ...], ...] = ()
 
     @property
     def operators(self) -> tuple[STRIPSOperator, ...]:
@@ -146,9 +150,11 @@ def learn_skills(
     timer = _Timer()
     say(f"segmenting {len(demos)} demonstrations")
     with timer.stage("segment"):
-        segments = segment_demonstrations(
-            demos, predicates, contact_predicates, config.settle_steps
+        per_demo = tuple(
+            tuple(segment_demonstration(demo, predicates, contact_predicates, config.settle_steps))
+            for demo in demos
         )
+    segments = [seg for segs in per_demo for seg in segs]  # in demo order
     if not segments:
         raise ValueError("the demonstrations contain no segment with effects: nothing to learn")
     say(f"partitioning {len(segments)} segments")
@@ -256,7 +262,7 @@ def learn_skills(
         stage_seconds=tuple((s, timer.seconds.get(s, 0.0)) for s in STAGES),
     )
     return LearnedSkills(
-        tuple(s for s in skills if s is not None), frozenset(predicates), config, stats
+        tuple(s for s in skills if s is not None), frozenset(predicates), config, stats, per_demo
     )
 
 
