@@ -5,7 +5,8 @@ A temporary is named ``.NAME.tmp-<pid>-<host>-<random>``: a process killed while
 (SIGKILL, power loss) cannot delete it, so the next write of the same target deletes
 the temporaries of processes on this host that no longer run
 (:func:`remove_stale_temporaries`). A full disk or a read-only filesystem is reported
-by :func:`storage_problem` as one line.
+by :func:`storage_problem` as one line; :func:`require_free_space` refuses a write that
+cannot fit before it starts.
 """
 
 from __future__ import annotations
@@ -41,6 +42,37 @@ def storage_problem(err: BaseException, target: str | os.PathLike | None = None)
         f"cannot write{where}: {os.strerror(err.errno)} (nothing was replaced; free space "
         "or pick another place and run the command again)"
     )
+
+
+class NotEnoughSpaceError(Exception):
+    """A write refused before it starts: the filesystem has less space free than the
+    write certainly needs (so no work is done only to fail at the end)."""
+
+
+def require_free_space(path: str | os.PathLike, needed: int, what: str) -> None:
+    """Raise :class:`NotEnoughSpaceError` when the filesystem of ``path`` (a directory,
+    or a file in one; or their deepest existing ancestor) has fewer than ``needed``
+    bytes free; ``what`` names what needs them (e.g. "50 demonstrations")."""
+    path = Path(path)
+    ancestor = path if path.is_dir() else path.parent
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    try:
+        free = shutil.disk_usage(ancestor).free
+    except OSError:
+        return
+    if needed > free:
+        raise NotEnoughSpaceError(
+            f"{path}: {what} need at least {_size(needed)}, and {ancestor} has {_size(free)} free"
+        )
+
+
+def _size(n: float) -> str:
+    for unit in ("bytes", "kB", "MB", "GB"):
+        if n < 1000:
+            return f"{n:.3g} {unit}"
+        n /= 1000
+    return f"{n:.3g} TB"
 
 
 def _target_of(filename: str | bytes | os.PathLike) -> str:

@@ -73,10 +73,16 @@ def collect_demos(
     """Run the scripted demonstrator on train tasks 0..num-1 and save the successes; say
     why each failure failed (with ``debug``: its traceback and last abstract states).
     ``noise``: DART noise scale (:class:`bpns.data.demo_attempts.ActionNoise`); None: the
-    environment's declared one."""
-    from bpns.data.datasets import save_demonstrations
+    environment's declared one. Raises :class:`bpns.atomic.NotEnoughSpaceError`, before
+    collecting any, when ``num`` demonstrations cannot fit on ``out``'s disk."""
+    from bpns.atomic import require_free_space
+    from bpns.data.datasets import min_demo_bytes, save_demonstrations
     from bpns.data.demo_attempts import demo_noise_of
     from bpns.data.demos import collect_attempts
+
+    # a lower bound per demonstration: more than the disk holds is certain not to fit
+    needed = num * min_demo_bytes(env, env.task(0, seed, True))
+    require_free_space(out, needed, f"{num} demonstrations")
 
     failed: list[int] = []
     why: list[str] = []

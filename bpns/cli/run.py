@@ -31,7 +31,6 @@ from bpns.cli.common import (
 )
 from bpns.cli.paths import (
     capped_to_cores,
-    check_demos_fit,
     check_eval_outputs,
     check_output_dir,
     check_output_file,
@@ -157,7 +156,6 @@ def parse_run(args: argparse.Namespace) -> RunConfig:
     check_output_file(out / "demos.h5", "--out", args.overwrite)
     check_skills_dir(out / "skills", "--out", args.overwrite)
     check_eval_outputs(out / "eval", out / "eval_solved.mp4", names, args.overwrite)
-    check_demos_fit(env, args.demos, args.seed, out / "demos.h5", "--out")
     return RunConfig(
         env=env,
         entries=tuple(entries),
@@ -175,8 +173,7 @@ def parse_run(args: argparse.Namespace) -> RunConfig:
 
 def run(args: argparse.Namespace) -> int:
     config = parse_run(args)
-    with writing(config.out):
-        config.out.mkdir(parents=True, exist_ok=True)
+    with writing(config.out, "--out"):  # each file's write creates the directories it needs
         t0 = time.perf_counter()
         if not collect(config):
             return 1
