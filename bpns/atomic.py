@@ -29,10 +29,18 @@ from pathlib import Path
 STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG})
 
 
+class NotEnoughSpaceError(Exception):
+    """A write refused before it starts: the filesystem has less space free than the
+    write certainly needs (so no work is done only to fail at the end)."""
+
+
 def storage_problem(err: BaseException, target: str | os.PathLike | None = None) -> str | None:
     """One line saying why a write (of ``target``, if known) failed, if ``err`` is the
-    filesystem refusing it (a full disk, a quota, a read-only filesystem), else None.
-    Writes here are atomic, so nothing was replaced and no partial file is left."""
+    filesystem refusing it (a full disk, a quota, a read-only filesystem, or too little
+    space to start: :class:`NotEnoughSpaceError`), else None. Writes here are atomic, so
+    nothing was replaced and no partial file is left."""
+    if isinstance(err, NotEnoughSpaceError):
+        return str(err)
     if not isinstance(err, OSError) or err.errno not in STORAGE_ERRNOS:
         return None
     if target is None and err.filename:
@@ -42,11 +50,6 @@ def storage_problem(err: BaseException, target: str | os.PathLike | None = None)
         f"cannot write{where}: {os.strerror(err.errno)} (nothing was replaced; free space "
         "or pick another place and run the command again)"
     )
-
-
-class NotEnoughSpaceError(Exception):
-    """A write refused before it starts: the filesystem has less space free than the
-    write certainly needs (so no work is done only to fail at the end)."""
 
 
 def require_free_space(path: str | os.PathLike, needed: int, what: str) -> None:

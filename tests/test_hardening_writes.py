@@ -119,6 +119,8 @@ def test_a_storage_error_names_the_target_not_its_temporary(tmp_path):
         "free space or pick another place and run the command again)"
     )
     assert atomic.storage_problem(OSError(errno.ENOENT, "No such file")) is None
+    # refused before writing (a sweep stops on it as on a full disk)
+    assert atomic.storage_problem(atomic.NotEnoughSpaceError("d.h5: too big")) == "d.h5: too big"
 
 
 # -- videos -------------------------------------------------------------------------------
