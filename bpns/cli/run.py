@@ -37,12 +37,13 @@ from bpns.cli.paths import (
     check_skills_dir,
     writing,
 )
+from bpns.data.demos import check_replay
 from bpns.env.environment import Environment
 from bpns.evaluation.evaluate import EvalReport
 from bpns.learning import LearnedSkills, LearningConfig, describe
 from bpns.learning.config import learning_config_for
 from bpns.planning.config import PlanningConfig, planning_config_for
-from bpns.workflow import baselines_needed, check_replay, collect_demos, learn_to_directory
+from bpns.workflow import baselines_needed, collect_demos, learn_to_directory
 
 if TYPE_CHECKING:
     from bpns.learning.baselines import BaselinesConfig
@@ -199,11 +200,13 @@ def collect(config: RunConfig) -> bool:
         workers=config.workers,
         progress=progress,
     )
+    checked = None
+    if written.num_written:
+        checked = check_replay(env, config.demos_path, REPLAY_CHECKED, progress)
     print_lines(written)
-    if not written.num_written:
+    if checked is None:
         return False
     _step(f"replay: the first {REPLAY_CHECKED} demonstrations")
-    checked = check_replay(env, config.demos_path, REPLAY_CHECKED, progress)
     print_lines(checked)
     return checked.ok
 
