@@ -223,9 +223,7 @@ def test_learn_baselines_reuses_demos_and_operators_and_saves_into_a_skills_dir(
         bc=GNNConfig(max_steps=5, max_examples=50, seed=3),
         nosubgoal=False,
     )
-    learned = learn_baselines(
-        demos, toy.PREDICATES, toy.TYPES, toy.CONTACT_PREDICATES, skills, config
-    )
+    learned = learn_baselines(demos, toy.PREDICATES, toy.TYPES, skills, config)
     assert learned.meta_stats.num_examples == 20 and learned.meta_skipped_segments == 0
     assert learned.bc_stats.num_used == 50
     assert learned.bc_stats.num_examples == sum(len(d.actions) for d in demos)
@@ -249,7 +247,7 @@ def _toy_baselines(learning_seed: int, seed: int | None) -> LearnedBaselines:
         nosubgoal=False,
         seed=seed,
     )
-    return learn_baselines(demos, toy.PREDICATES, toy.TYPES, toy.CONTACT_PREDICATES, skills, config)
+    return learn_baselines(demos, toy.PREDICATES, toy.TYPES, skills, config)
 
 
 def _saved_arrays(learned: LearnedBaselines, directory) -> dict[str, np.ndarray]:
@@ -306,7 +304,6 @@ def test_the_metacontroller_refuses_skills_that_carry_no_segments() -> None:
             demos,
             toy.PREDICATES,
             toy.TYPES,
-            toy.CONTACT_PREDICATES,
             skills,
             BaselinesConfig(meta=GNNConfig(max_steps=1), bc=None, nosubgoal=False),
         )
