@@ -296,14 +296,18 @@ def test_learned_segments_label_the_same_decisions_as_a_fresh_segmentation() -> 
         assert state_a.allclose(state_b) and rest_a == rest_b
 
 
-def test_the_metacontroller_refuses_skills_that_carry_no_segments() -> None:
+@pytest.mark.parametrize(
+    "config",
+    [
+        BaselinesConfig(meta=GNNConfig(max_steps=1), bc=None, nosubgoal=False),
+        BaselinesConfig(meta=None, bc=None, nosubgoal=True),
+    ],
+)
+def test_baselines_refuse_skills_that_carry_no_segments_of_their_demos(config) -> None:
     demos = toy_gnn.demos(2, seed=11)
     skills = LearnedSkills(tuple(toy_gnn.oracle_skills()), toy.PREDICATES, LearningConfig())
-    with pytest.raises(ValueError, match="segments of 0 demonstrations given for 2"):
-        learn_baselines(
-            demos,
-            toy.PREDICATES,
-            toy.TYPES,
-            skills,
-            BaselinesConfig(meta=GNNConfig(max_steps=1), bc=None, nosubgoal=False),
-        )
+    with pytest.raises(ValueError, match="segments of 0 demonstrations, and 2 were given"):
+        learn_baselines(demos, toy.PREDICATES, toy.TYPES, skills, config)
+    bc_only = BaselinesConfig(meta=None, bc=GNNConfig(max_steps=1), nosubgoal=False)
+    learned = learn_baselines(demos, toy.PREDICATES, toy.TYPES, skills, bc_only)
+    assert learned.bc_policy is not None and learned.metacontroller is None

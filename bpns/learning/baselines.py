@@ -127,6 +127,13 @@ def learn_baselines(
     config = BaselinesConfig() if config is None else config
     config = config.seeded(skills.config.seed if config.seed is None else config.seed)
     say = report or (lambda message: None)
+    if (config.meta is not None or config.nosubgoal) and len(skills.segments) != len(demos):
+        raise ValueError(
+            f"the skills carry the segments of {len(skills.segments)} demonstrations, and "
+            f"{len(demos)} were given: GNN Meta and No Subgoal learn from the segments the "
+            "skills were learned from (learn_skills records them; skills loaded from disk "
+            "carry none)"
+        )
     vocab = GraphVocabulary.build(types, predicates)
     seconds: dict[str, float] = {}
     meta = meta_stats = None

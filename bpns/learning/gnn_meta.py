@@ -81,10 +81,7 @@ def metacontroller_examples(
     segmentation the operators were learned from, ``LearnedSkills.segments``), and the
     number of segments left unlabelled."""
     if len(segments) != len(demos):
-        raise ValueError(
-            f"segments of {len(segments)} demonstrations given for {len(demos)} (skills "
-            "loaded or built by hand carry none: learn_skills records them)"
-        )
+        raise ValueError(f"segments of {len(segments)} demonstrations given for {len(demos)}")
     examples, skipped = [], 0
     for demo, segs in zip(demos, segments, strict=True):
         for seg in segs:
