@@ -5,7 +5,8 @@ A temporary is named ``.NAME.tmp-<pid>-<host>-<random>``: a process killed while
 (SIGKILL, power loss) cannot delete it, so the next write of the same target deletes
 the temporaries of processes on this host that no longer run
 (:func:`remove_stale_temporaries`). A full disk or a read-only filesystem is reported
-by :func:`storage_problem` as one line.
+by :func:`storage_problem` as one line; :func:`require_free_space` refuses a write that
+cannot fit before it starts.
 """
 
 from __future__ import annotations
@@ -28,10 +29,18 @@ from pathlib import Path
 STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG})
 
 
+class NotEnoughSpaceError(Exception):
+    """A write refused before it starts: the filesystem has less space free than the
+    write certainly needs (so no work is done only to fail at the end)."""
+
+
 def storage_problem(err: BaseException, target: str | os.PathLike | None = None) -> str | None:
     """One line saying why a write (of ``target``, if known) failed, if ``err`` is the
-    filesystem refusing it (a full disk, a quota, a read-only filesystem), else None.
-    Writes here are atomic, so nothing was replaced and no partial file is left."""
+    filesystem refusing it (a full disk, a quota, a read-only filesystem, or too little
+    space to start: :class:`NotEnoughSpaceError`), else None. Writes here are atomic, so
+    nothing was replaced and no partial file is left."""
+    if isinstance(err, NotEnoughSpaceError):
+        return str(err)
     if not isinstance(err, OSError) or err.errno not in STORAGE_ERRNOS:
         return None
     if target is None and err.filename:
@@ -41,6 +50,32 @@ def storage_problem(err: BaseException, target: str | os.PathLike | None = None)
         f"cannot write{where}: {os.strerror(err.errno)} (nothing was replaced; free space "
         "or pick another place and run the command again)"
     )
+
+
+def require_free_space(path: str | os.PathLike, needed: int, what: str) -> None:
+    """Raise :class:`NotEnoughSpaceError` when the filesystem of ``path`` (a directory,
+    or a file in one; or their deepest existing ancestor) has fewer than ``needed``
+    bytes free; ``what`` names what needs them (e.g. "50 demonstrations")."""
+    path = Path(path)
+    ancestor = path if path.is_dir() else path.parent
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    try:
+        free = shutil.disk_usage(ancestor).free
+    except OSError:
+        return
+    if needed > free:
+        raise NotEnoughSpaceError(
+            f"{path}: {what} need at least {_size(needed)}, and {ancestor} has {_size(free)} free"
+        )
+
+
+def _size(n: float) -> str:
+    for unit in ("bytes", "kB", "MB", "GB"):
+        if n < 1000:
+            return f"{n:.3g} {unit}"
+        n /= 1000
+    return f"{n:.3g} TB"
 
 
 def _target_of(filename: str | bytes | os.PathLike) -> str:

@@ -1,5 +1,6 @@
-"""The pipeline's steps as library functions: collect demonstrations into a file, check
-that they replay exactly, learn skills into a directory.
+"""The pipeline's steps as library functions: collect demonstrations into a file, learn
+skills into a directory (checking that demonstrations replay exactly is a data check:
+:func:`bpns.data.demos.check_replay`).
 
 The ``bpns`` commands and ``bpns run`` (which chains them) call these; each returns a
 small record whose ``lines()`` are what the command prints, so one step reports the
@@ -8,13 +9,14 @@ same way whichever command ran it.
 
 from __future__ import annotations
 
+import dataclasses
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING
 
-from bpns.data.demos import ReplayReport
+from bpns.data.demos import Progress, no_progress
 from bpns.env.environment import Environment
 
 if TYPE_CHECKING:
@@ -23,17 +25,9 @@ if TYPE_CHECKING:
     from bpns.learning.config import LearningConfig
     from bpns.learning.pipeline import LearnedSkills
 
-T = TypeVar("T")
-# (items, total, description, unit) -> the same items (e.g. wrapped in a progress bar)
-Progress = Callable[[Iterable[T], int, str, str], Iterator[T]]
-
 
 class CannotLearnError(ValueError):
     """The demonstrations hold nothing to learn skills from (e.g. no segments)."""
-
-
-def _no_progress(items: Iterable[T], total: int, desc: str, unit: str) -> Iterator[T]:
-    return iter(items)
 
 
 # -- demonstrations -----------------------------------------------------------------------
@@ -65,17 +59,23 @@ def collect_demos(
     seed: int,
     out: Path,
     workers: int = 1,
-    progress: Progress = _no_progress,
+    progress: Progress = no_progress,
     debug: bool = False,
     noise: float | None = None,
 ) -> DemosWritten:
     """Run the scripted demonstrator on train tasks 0..num-1 and save the successes; say
     why each failure failed (with ``debug``: its traceback and last abstract states).
     ``noise``: DART noise scale (:class:`bpns.data.demo_attempts.ActionNoise`); None: the
-    environment's declared one."""
-    from bpns.data.datasets import save_demonstrations
+    environment's declared one. Raises :class:`bpns.atomic.NotEnoughSpaceError`, before
+    collecting any, when ``num`` demonstrations cannot fit on ``out``'s disk."""
+    from bpns.atomic import require_free_space
+    from bpns.data.datasets import min_demo_bytes, save_demonstrations
     from bpns.data.demo_attempts import demo_noise_of
     from bpns.data.demos import collect_attempts
+
+    # a lower bound per demonstration: more than the disk holds is certain not to fit
+    needed = num * min_demo_bytes(env, env.task(0, seed, True))
+    require_free_space(out, needed, f"{num} demonstrations")
 
     failed: list[int] = []
     why: list[str] = []
@@ -99,50 +99,6 @@ def collect_demos(
     return DemosWritten(
         out, env.name, n, tuple(failed), time.perf_counter() - t0, tuple(why), noise
     )
-
-
-# -- replay -------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class ReplayCheck:
-    reports: tuple[ReplayReport, ...]
-
-    @property
-    def bad(self) -> list[ReplayReport]:
-        return [r for r in self.reports if not r.exact or not r.goal_reached]
-
-    @property
-    def ok(self) -> bool:
-        return not self.bad
-
-    def lines(self) -> list[str]:
-        reports, bad = self.reports, self.bad
-        worst = max((r.max_state_diff for r in reports), default=0.0)
-        out = [
-            f"replayed {len(reports)} demonstrations ({sum(r.steps for r in reports)} steps): "
-            f"max |state diff| = {worst:.3g}, "
-            f"{len(reports) - len(bad)}/{len(reports)} exact and reaching their goal"
-        ]
-        for r in bad:
-            out.append(
-                f"  demo_{r.demo}: max state diff {r.max_state_diff:.3g}, feature diff "
-                f"{r.max_feature_diff:.3g}, goal "
-                + ("reached" if r.goal_reached else "NOT reached")
-            )
-        return out
-
-
-def check_replay(
-    env: Environment, path: Path, limit: int | None = None, progress: Progress = _no_progress
-) -> ReplayCheck:
-    """Re-simulate the first ``limit`` (default: all) demonstrations of ``path``.
-    Raises ``bpns.data.datasets.DatasetError`` for a file that is not a readable dataset."""
-    from bpns.data.datasets import count_demonstrations, iter_demonstrations
-    from bpns.data.demos import replay
-
-    total = count_demonstrations(path)
-    n = min(total, limit or total)
-    demos = progress(iter_demonstrations(path, env, range(n)), n, "replay", "task")
-    return ReplayCheck(tuple(replay(env, d, i) for i, d in enumerate(demos)))
 
 
 # -- learning -----------------------------------------------------------------------------
@@ -193,7 +149,7 @@ def learn_to_directory(
     config: LearningConfig,
     limit: int | None = None,
     threads: int = 1,
-    progress: Progress = _no_progress,
+    progress: Progress = no_progress,
     report: Callable[[str], None] | None = None,
     baselines: BaselinesConfig | None = None,
     workers: int = 1,
@@ -236,4 +192,6 @@ def learn_to_directory(
 
         # after the skills: saving them replaces `out`
         baseline_seconds = learn_baselines_into(out, env, demos, learned, baselines, report)
+    # the segments hold every demonstration's states: not kept through what comes next
+    learned = dataclasses.replace(learned, segments=())
     return LearnedRun(learned, env.name, n, load_seconds, out, baseline_seconds)

@@ -226,10 +226,10 @@ def test_a_sweep_whose_demonstrations_cannot_fit_is_refused_before_work(
 ):
     import shutil
 
-    from bpns.cli import paths
+    from bpns import atomic
 
     usage = shutil.disk_usage(tmp_path)
-    monkeypatch.setattr(paths.shutil, "disk_usage", lambda p: usage._replace(free=10_000))
+    monkeypatch.setattr(atomic.shutil, "disk_usage", lambda p: usage._replace(free=10_000))
     out = tmp_path / "s"
     line = error_line([*SWEEP, "--out", str(out)], capsys)
     assert line.startswith(f"bpns: error: --out {out}: 2 demonstrations need at least ")

@@ -92,3 +92,21 @@ def test_run_refuses_hand_written_skills_an_environment_lacks(capsys):
     assert [e.name for e in approaches_to_run(_NoOracleSkills(), None)] == ["bpns"]
     with pytest.raises(UserError, match="environment 'plain' declares none"):
         approaches_to_run(_NoOracleSkills(), ["bpns", "oracle"])
+
+
+def test_run_collects_then_prints_the_demos_and_the_replay_check_in_that_order(tmp_path, capsys):
+    from bpns.cli import build_parser
+    from bpns.cli.run import collect, parse_run
+
+    args = build_parser().parse_args(
+        ["run", "--env", "cover", "--demos", "2", "--workers", "1", "--out", str(tmp_path / "r")]
+    )
+    assert collect(parse_run(args))
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split(" ", 2)[:2] for line in lines] == [
+        ["==", "demos:"],
+        ["wrote", "2"],
+        ["==", "replay:"],
+        ["replayed", "2"],
+    ]
+    assert lines[-1].endswith("2/2 exact and reaching their goal")

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import errno
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -80,6 +81,36 @@ def test_more_demos_than_the_disk_can_hold_are_refused_before_collecting(tmp_pat
     assert not out.exists()
 
 
+def test_a_run_whose_demos_cannot_fit_is_refused_before_collecting_and_leaves_nothing(
+    tmp_path, capsys
+):
+    out = tmp_path / "r"
+    argv = ["run", "--env", "cover", "--demos", "99999999999999999999999", "--out", str(out)]
+    err = error_line(argv, capsys)
+    assert err.startswith(f"bpns: error: --out {out / 'demos.h5'}: 99999999999999999999999 ")
+    assert "demonstrations need at least" in err and "free" in err
+    assert not out.exists()
+
+
+def test_collect_demos_refuses_what_cannot_fit_before_running_the_demonstrator(
+    tmp_path, cover_env, monkeypatch
+):
+    from bpns.data import demos
+    from bpns.workflow import collect_demos
+
+    def no_demonstrator(*args, **kwargs):
+        raise AssertionError("the demonstrator ran")
+
+    monkeypatch.setattr(demos, "collect_attempts", no_demonstrator)
+    usage = shutil.disk_usage(tmp_path)
+    monkeypatch.setattr(atomic.shutil, "disk_usage", lambda p: usage._replace(free=1000))
+    with pytest.raises(
+        atomic.NotEnoughSpaceError, match=r"3 demonstrations need at least .* 1 kB free"
+    ):
+        collect_demos(cover_env, 3, 0, tmp_path / "d.h5")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_storage_error_names_the_target_not_its_temporary(tmp_path):
     tmp = tmp_path / f".d.h5{atomic.temporary_prefix(tmp_path / 'd.h5')[len('.d.h5') :]}x.h5"
     err = OSError(errno.EROFS, os.strerror(errno.EROFS), str(tmp))
@@ -88,6 +119,8 @@ def test_a_storage_error_names_the_target_not_its_temporary(tmp_path):
         "free space or pick another place and run the command again)"
     )
     assert atomic.storage_problem(OSError(errno.ENOENT, "No such file")) is None
+    # refused before writing (a sweep stops on it as on a full disk)
+    assert atomic.storage_problem(atomic.NotEnoughSpaceError("d.h5: too big")) == "d.h5: too big"
 
 
 # -- videos -------------------------------------------------------------------------------

@@ -34,7 +34,8 @@ from bpns.learning.gnn_meta import (
     train_metacontroller,
 )
 from bpns.learning.graphs import GraphVocabulary, batch_graphs, encode_graph
-from bpns.learning.pipeline import LearnedSkills
+from bpns.learning.pipeline import LearnedSkills, learn_skills
+from bpns.learning.segmentation import segment_demonstration
 from tests import toy_gnn
 from tests import toy_learning as toy
 
@@ -43,9 +44,7 @@ VOCAB = GraphVocabulary.build(toy.TYPES, toy.PREDICATES)
 
 def _examples(n: int, seed: int, num_blocks: int = 2) -> list[MetaExample]:
     demos = toy_gnn.demos(n, seed, num_blocks)
-    out, skipped = metacontroller_examples(
-        demos, toy.PREDICATES, toy.CONTACT_PREDICATES, toy_gnn.operators()
-    )
+    out, skipped = metacontroller_examples(demos, toy_gnn.segments_of(demos), toy_gnn.operators())
     assert skipped == 0
     return out
 
@@ -213,15 +212,18 @@ def test_models_refuse_the_wrong_kind_environment_or_operators(tmp_path) -> None
 
 def test_learn_baselines_reuses_demos_and_operators_and_saves_into_a_skills_dir(tmp_path) -> None:
     demos = toy_gnn.demos(10, seed=11)
-    skills = LearnedSkills(tuple(toy_gnn.oracle_skills()), toy.PREDICATES, LearningConfig())
+    skills = LearnedSkills(
+        tuple(toy_gnn.oracle_skills()),
+        toy.PREDICATES,
+        LearningConfig(),
+        segments=toy_gnn.segments_of(demos),
+    )
     config = BaselinesConfig(
         meta=GNNConfig(max_steps=5),
         bc=GNNConfig(max_steps=5, max_examples=50, seed=3),
         nosubgoal=False,
     )
-    learned = learn_baselines(
-        demos, toy.PREDICATES, toy.TYPES, toy.CONTACT_PREDICATES, skills, config
-    )
+    learned = learn_baselines(demos, toy.PREDICATES, toy.TYPES, skills, config)
     assert learned.meta_stats.num_examples == 20 and learned.meta_skipped_segments == 0
     assert learned.bc_stats.num_used == 50
     assert learned.bc_stats.num_examples == sum(len(d.actions) for d in demos)
@@ -232,8 +234,12 @@ def test_learn_baselines_reuses_demos_and_operators_and_saves_into_a_skills_dir(
 
 
 def _toy_baselines(learning_seed: int, seed: int | None) -> LearnedBaselines:
+    demos = toy_gnn.demos(6, seed=11)
     skills = LearnedSkills(
-        tuple(toy_gnn.oracle_skills()), toy.PREDICATES, LearningConfig(seed=learning_seed)
+        tuple(toy_gnn.oracle_skills()),
+        toy.PREDICATES,
+        LearningConfig(seed=learning_seed),
+        segments=toy_gnn.segments_of(demos),
     )
     config = BaselinesConfig(
         meta=GNNConfig(max_steps=3),
@@ -241,8 +247,7 @@ def _toy_baselines(learning_seed: int, seed: int | None) -> LearnedBaselines:
         nosubgoal=False,
         seed=seed,
     )
-    demos = toy_gnn.demos(6, seed=11)
-    return learn_baselines(demos, toy.PREDICATES, toy.TYPES, toy.CONTACT_PREDICATES, skills, config)
+    return learn_baselines(demos, toy.PREDICATES, toy.TYPES, skills, config)
 
 
 def _saved_arrays(learned: LearnedBaselines, directory) -> dict[str, np.ndarray]:
@@ -266,3 +271,43 @@ def test_gnns_take_the_learning_seed_unless_a_seed_is_given(tmp_path) -> None:
     assert first.keys() == again.keys() == other.keys()
     assert all(np.array_equal(first[k], again[k]) for k in first)  # same seed, same weights
     assert not all(np.array_equal(first[k], other[k]) for k in first)  # another draw
+
+
+def _decisions(examples: list[MetaExample]) -> list[tuple]:
+    return [(ex.state, ex.atoms, ex.goal, ex.op_index, ex.objects) for ex in examples]
+
+
+def test_learned_segments_label_the_same_decisions_as_a_fresh_segmentation() -> None:
+    demos = toy_gnn.demos(8, seed=21)
+    learned = learn_skills(
+        demos, toy.PREDICATES, toy.CONTACT_PREDICATES, toy.fast_config(steps=2, settle_steps=2)
+    )
+    fresh = tuple(
+        tuple(segment_demonstration(d, toy.PREDICATES, toy.CONTACT_PREDICATES, settle_steps=2))
+        for d in demos
+    )
+    assert [len(s) for s in learned.segments] == [len(s) for s in fresh] == [2] * 8
+    reused, reused_skipped = metacontroller_examples(demos, learned.segments, learned.operators)
+    again, again_skipped = metacontroller_examples(demos, fresh, learned.operators)
+    assert len(reused) == 16 and reused_skipped == again_skipped == 0
+    for a, b in zip(_decisions(reused), _decisions(again), strict=True):
+        state_a, *rest_a = a
+        state_b, *rest_b = b
+        assert state_a.allclose(state_b) and rest_a == rest_b
+
+
+@pytest.mark.parametrize(
+    "config",
+    [
+        BaselinesConfig(meta=GNNConfig(max_steps=1), bc=None, nosubgoal=False),
+        BaselinesConfig(meta=None, bc=None, nosubgoal=True),
+    ],
+)
+def test_baselines_refuse_skills_that_carry_no_segments_of_their_demos(config) -> None:
+    demos = toy_gnn.demos(2, seed=11)
+    skills = LearnedSkills(tuple(toy_gnn.oracle_skills()), toy.PREDICATES, LearningConfig())
+    with pytest.raises(ValueError, match="segments of 0 demonstrations, and 2 were given"):
+        learn_baselines(demos, toy.PREDICATES, toy.TYPES, skills, config)
+    bc_only = BaselinesConfig(meta=None, bc=GNNConfig(max_steps=1), nosubgoal=False)
+    learned = learn_baselines(demos, toy.PREDICATES, toy.TYPES, skills, bc_only)
+    assert learned.bc_policy is not None and learned.metacontroller is None

@@ -1,12 +1,14 @@
 """The whole learning pipeline on ToyCover: operators, statistics, reproducibility and
 skills good enough to solve held-out tasks by sampling and rolling out."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
 
 from bpns.env.abstraction import abstract
-from bpns.learning.pipeline import derive_seed, learn_skills
+from bpns.learning.pipeline import derive_seed, learn_from_segments, learn_skills
 from bpns.learning.samplers import CurrentStateSampler, LearnedSampler
 from tests import toy_learning as toy
 
@@ -125,6 +127,24 @@ def test_no_subgoal_variant_learns_state_only_policies_and_no_samplers():
         assert not skill.policy.use_subgoals
         assert skill.policy.params.input_dim == len(skill.policy.dims.state_dims)
     assert all(s.num_sampler_negatives == 0 for s in result.stats.skills)
+
+
+def test_no_subgoal_skills_learned_from_recorded_segments_equal_learning_them_afresh():
+    demos = toy.demos(4, seed=1)
+    config = toy.fast_config(seed=7, steps=30)
+    bpns = learn_skills(demos, toy.PREDICATES, toy.CONTACT_PREDICATES, config)
+    assert [len(s) for s in bpns.segments] == [4] * 4  # pick, place, pick, place
+    nosub = dataclasses.replace(config, use_subgoals=False)
+    afresh = learn_skills(demos, toy.PREDICATES, toy.CONTACT_PREDICATES, nosub)
+    reused = learn_from_segments(demos, bpns.segments, toy.PREDICATES, nosub, segment_seconds=1.5)
+    assert [s.operator for s in reused.skills] == [s.operator for s in afresh.skills]
+    for a, b in zip(reused.skills, afresh.skills, strict=True):
+        assert a.policy.params.identical(b.policy.params)
+        assert isinstance(a.sampler, CurrentStateSampler)
+    assert reused.stats.skills == afresh.stats.skills
+    assert dict(reused.stats.stage_seconds)["segment"] == 1.5
+    with pytest.raises(ValueError, match="segments of 3 demonstrations given for 4"):
+        learn_from_segments(demos, bpns.segments[:3], toy.PREDICATES, nosub)
 
 
 def test_rare_skills_are_filtered_in_the_pipeline():

@@ -16,8 +16,16 @@ from bpns.env.environment import Capabilities
 from bpns.learning.operators import learn_operators
 from bpns.learning.partition import partition_segments
 from bpns.learning.samplers import CurrentStateSampler
-from bpns.learning.segmentation import segment_demonstrations
-from bpns.structs import Demonstration, GroundAtom, Skill, State, STRIPSOperator, Task
+from bpns.learning.segmentation import segment_demonstration, segment_demonstrations
+from bpns.structs import (
+    Demonstration,
+    GroundAtom,
+    Segment,
+    Skill,
+    State,
+    STRIPSOperator,
+    Task,
+)
 from tests import toy_learning as toy
 
 
@@ -48,6 +56,13 @@ def demonstrate(task: Task, rng: np.random.Generator) -> Demonstration:
 def demos(n: int, seed: int, num_blocks: int = 2) -> list[Demonstration]:
     rng = np.random.default_rng(seed)
     return [demonstrate(single_goal_task(rng, num_blocks), rng) for _ in range(n)]
+
+
+def segments_of(demos: list[Demonstration]) -> tuple[tuple[Segment, ...], ...]:
+    """Each demo's segments, as ``learn_skills`` records them in ``LearnedSkills.segments``."""
+    return tuple(
+        tuple(segment_demonstration(d, toy.PREDICATES, toy.CONTACT_PREDICATES)) for d in demos
+    )
 
 
 @functools.cache

@@ -14,7 +14,7 @@ from bpns.cli.common import (
     print_lines,
     progress,
 )
-from bpns.cli.paths import capped_to_cores, check_demos_fit, check_output_file, writing
+from bpns.cli.paths import capped_to_cores, check_output_file, writing
 
 HELP = "collect demonstrations with the scripted oracle"
 
@@ -45,9 +45,8 @@ def run(args: argparse.Namespace) -> int:
 
     env = env_by_name(args.env)
     check_output_file(args.out, "--out", args.overwrite)
-    check_demos_fit(env, args.num, args.seed, args.out, "--out")
     workers = capped_to_cores(args.workers, "--workers")
-    with writing(args.out):
+    with writing(args.out, "--out"):  # also: more demos than the disk holds, refused first
         written = collect_demos(
             env,
             args.num,

@@ -12,14 +12,13 @@ from __future__ import annotations
 
 import contextlib
 import os
-import shutil
 import stat
 import sys
 import tempfile
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
-from bpns.atomic import storage_problem
+from bpns.atomic import NotEnoughSpaceError, require_free_space, storage_problem
 from bpns.cli.common import UserError
 
 SKILLS_INDEX = "skills.json"  # what marks a directory as a skills directory
@@ -111,11 +110,14 @@ def check_output_dir(path: Path, flag: str) -> None:
 
 
 @contextlib.contextmanager
-def writing(path: Path | None) -> Iterator[None]:
+def writing(path: Path | None, flag: str | None = None) -> Iterator[None]:
     """A full disk or read-only filesystem while writing ``path`` becomes one line
-    naming it (the write is atomic: nothing was replaced)."""
+    naming it (the write is atomic: nothing was replaced), as does a write refused
+    before it started for want of space (named by ``flag``, the option that chose it)."""
     try:
         yield
+    except NotEnoughSpaceError as err:
+        raise UserError(f"{flag} {err}" if flag else str(err)) from None
     except OSError as err:
         problem = storage_problem(err, path)
         if problem is None:
@@ -124,37 +126,12 @@ def writing(path: Path | None) -> Iterator[None]:
 
 
 def check_free_space(path: Path, needed: int, flag: str, what: str) -> None:
-    """Refuse before any work when the filesystem of ``path`` (a directory, or a file in
-    one; or their deepest existing ancestor) has fewer than ``needed`` bytes free."""
-    ancestor = path if path.is_dir() else path.parent
-    while not ancestor.exists() and ancestor != ancestor.parent:
-        ancestor = ancestor.parent
+    """Refuse before any work when the filesystem of ``path`` has fewer than ``needed``
+    bytes free (:func:`bpns.atomic.require_free_space`)."""
     try:
-        free = shutil.disk_usage(ancestor).free
-    except OSError:
-        return
-    if needed > free:
-        raise UserError(
-            f"{flag} {path}: {what} need at least {_size(needed)}, and {ancestor} has "
-            f"{_size(free)} free"
-        )
-
-
-def check_demos_fit(env, num: int, seed: int, out: Path, flag: str) -> None:
-    """Refuse ``num`` demonstrations that cannot fit on ``out``'s disk, before collecting
-    (a lower bound per demonstration: see ``bpns.data.datasets.min_demo_bytes``)."""
-    from bpns.data.datasets import min_demo_bytes
-
-    needed = num * min_demo_bytes(env, env.task(0, seed, True))
-    check_free_space(out, needed, flag, f"{num} demonstrations")
-
-
-def _size(n: float) -> str:
-    for unit in ("bytes", "kB", "MB", "GB"):
-        if n < 1000:
-            return f"{n:.3g} {unit}"
-        n /= 1000
-    return f"{n:.3g} TB"
+        require_free_space(path, needed, what)
+    except NotEnoughSpaceError as err:
+        raise UserError(f"{flag} {err}") from None
 
 
 def usable_cores() -> int:

@@ -17,8 +17,8 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bpns.data.datasets import DatasetError
+    from bpns.data.demos import check_replay
     from bpns.evaluation.rollout_files import is_rollouts_file, replay_rollouts
-    from bpns.workflow import check_replay
 
     env = file_env(args.file, args.env)
     try:

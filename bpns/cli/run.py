@@ -31,19 +31,19 @@ from bpns.cli.common import (
 )
 from bpns.cli.paths import (
     capped_to_cores,
-    check_demos_fit,
     check_eval_outputs,
     check_output_dir,
     check_output_file,
     check_skills_dir,
     writing,
 )
+from bpns.data.demos import check_replay
 from bpns.env.environment import Environment
 from bpns.evaluation.evaluate import EvalReport
 from bpns.learning import LearnedSkills, LearningConfig, describe
 from bpns.learning.config import learning_config_for
 from bpns.planning.config import PlanningConfig, planning_config_for
-from bpns.workflow import baselines_needed, check_replay, collect_demos, learn_to_directory
+from bpns.workflow import baselines_needed, collect_demos, learn_to_directory
 
 if TYPE_CHECKING:
     from bpns.learning.baselines import BaselinesConfig
@@ -157,7 +157,6 @@ def parse_run(args: argparse.Namespace) -> RunConfig:
     check_output_file(out / "demos.h5", "--out", args.overwrite)
     check_skills_dir(out / "skills", "--out", args.overwrite)
     check_eval_outputs(out / "eval", out / "eval_solved.mp4", names, args.overwrite)
-    check_demos_fit(env, args.demos, args.seed, out / "demos.h5", "--out")
     return RunConfig(
         env=env,
         entries=tuple(entries),
@@ -175,8 +174,7 @@ def parse_run(args: argparse.Namespace) -> RunConfig:
 
 def run(args: argparse.Namespace) -> int:
     config = parse_run(args)
-    with writing(config.out):
-        config.out.mkdir(parents=True, exist_ok=True)
+    with writing(config.out, "--out"):  # each file's write creates the directories it needs
         t0 = time.perf_counter()
         if not collect(config):
             return 1
@@ -202,11 +200,13 @@ def collect(config: RunConfig) -> bool:
         workers=config.workers,
         progress=progress,
     )
+    checked = None
+    if written.num_written:
+        checked = check_replay(env, config.demos_path, REPLAY_CHECKED, progress)
     print_lines(written)
-    if not written.num_written:
+    if checked is None:
         return False
     _step(f"replay: the first {REPLAY_CHECKED} demonstrations")
-    checked = check_replay(env, config.demos_path, REPLAY_CHECKED, progress)
     print_lines(checked)
     return checked.ok
 

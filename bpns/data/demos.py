@@ -1,20 +1,32 @@
 """Collect demonstrations by running an environment's scripted demonstrator in physics,
-and replay stored demonstrations to check that they reproduce exactly."""
+and replay stored demonstrations to check that they reproduce exactly (one, or the
+first of a file: :func:`check_replay`)."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
+from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
+from bpns.data.datasets import count_demonstrations, iter_demonstrations
 from bpns.data.demo_attempts import DemoAttempt, attempt_demonstration
 from bpns.env.abstraction import abstract
 from bpns.env.environment import Environment
 from bpns.env.registry import make_environment
 from bpns.pools import bounded_map, capped_workers, make_pool
 from bpns.structs import Demonstration, Task
+
+T = TypeVar("T")
+# (items, total, description, unit) -> the same items (e.g. wrapped in a progress bar)
+Progress = Callable[[Iterable[T], int, str, str], Iterator[T]]
+
+
+def no_progress(items: Iterable[T], total: int, desc: str, unit: str) -> Iterator[T]:
+    return iter(items)
 
 
 def run_demonstrator(env: Environment, task: Task, seed: int | list[int]) -> Demonstration | None:
@@ -103,3 +115,43 @@ def _worse(worst: float, diff: np.ndarray) -> float:
     if d.size and not np.all(np.isfinite(d)):
         return math.inf
     return max(worst, float(d.max())) if d.size else worst
+
+
+@dataclass(frozen=True)
+class ReplayCheck:
+    reports: tuple[ReplayReport, ...]
+
+    @property
+    def bad(self) -> list[ReplayReport]:
+        return [r for r in self.reports if not r.exact or not r.goal_reached]
+
+    @property
+    def ok(self) -> bool:
+        return not self.bad
+
+    def lines(self) -> list[str]:
+        reports, bad = self.reports, self.bad
+        worst = max((r.max_state_diff for r in reports), default=0.0)
+        out = [
+            f"replayed {len(reports)} demonstrations ({sum(r.steps for r in reports)} steps): "
+            f"max |state diff| = {worst:.3g}, "
+            f"{len(reports) - len(bad)}/{len(reports)} exact and reaching their goal"
+        ]
+        for r in bad:
+            out.append(
+                f"  demo_{r.demo}: max state diff {r.max_state_diff:.3g}, feature diff "
+                f"{r.max_feature_diff:.3g}, goal "
+                + ("reached" if r.goal_reached else "NOT reached")
+            )
+        return out
+
+
+def check_replay(
+    env: Environment, path: Path, limit: int | None = None, progress: Progress = no_progress
+) -> ReplayCheck:
+    """Re-simulate the first ``limit`` (default: all) demonstrations of ``path``.
+    Raises ``bpns.data.datasets.DatasetError`` for a file that is not a readable dataset."""
+    total = count_demonstrations(path)
+    n = min(total, limit or total)
+    demos = progress(iter_demonstrations(path, env, range(n)), n, "replay", "task")
+    return ReplayCheck(tuple(replay(env, d, i) for i, d in enumerate(demos)))

@@ -18,7 +18,6 @@ import statistics
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -306,13 +305,3 @@ def evaluate(
         train_tasks=spec.train_tasks,
         perturbation=spec.perturbation,
     )
-
-
-def save_plans(path: str | Path, report: EvalReport) -> None:
-    """Actions of every solved task as ``task_<index>`` arrays in one .npz (atomic)."""
-    from bpns.atomic import atomic_path
-
-    arrays = {f"task_{o.index}": o.actions for o in report.outcomes if o.solved}
-    with atomic_path(Path(path)) as tmp:
-        with open(tmp, "wb") as f:
-            np.savez(f, **arrays)

@@ -9,11 +9,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from bpns.atomic import atomic_path
 from bpns.env.environment import Environment, perturbed
 from bpns.env.perturbations import Perturbation
 from bpns.env.registry import make_environment
-from bpns.evaluation.evaluate import EvalReport, TaskOutcome, save_plans
+from bpns.evaluation.evaluate import EvalReport, TaskOutcome
 from bpns.evaluation.rollout_files import demonstration_of, rollouts_name, save_rollouts
 from bpns.execution.failures import MEANING
 from bpns.execution.rollouts import Rollout
@@ -47,6 +49,14 @@ def write_results(
         save_plans(out / f"plans_{r.approach}.npz", r)
         if env is not None:
             save_rollouts(out / rollouts_name(r.approach), env, r)
+
+
+def save_plans(path: str | Path, report: EvalReport) -> None:
+    """Actions of every solved task as ``task_<index>`` arrays in one .npz (atomic)."""
+    arrays = {f"task_{o.index}": o.actions for o in report.outcomes if o.solved}
+    with atomic_path(Path(path)) as tmp:
+        with open(tmp, "wb") as f:
+            np.savez(f, **arrays)
 
 
 @dataclass(frozen=True)

@@ -114,7 +114,8 @@ def _learn(job: CellJob) -> dict[str, Any]:
 
 def _evaluate(job: CellJob) -> dict[str, Any]:
     from bpns.env.perturbations import NOMINAL
-    from bpns.evaluation.evaluate import EvalSpec, evaluate, save_plans
+    from bpns.evaluation.evaluate import EvalSpec, evaluate
+    from bpns.evaluation.reporting import save_plans
 
     cell = job.cell
     assert cell.planning is not None and cell.approach is not None and cell.eval_tasks

@@ -2,15 +2,21 @@
 
 Stages, each usable alone: :func:`segment_demonstrations` -> :func:`partition_segments`
 -> :func:`learn_operators` -> :func:`learn_policy` / :func:`learn_sampler`;
-:func:`learn_skills` runs them all. :func:`save_skills` / :func:`load_skills` persist
-the result.
+:func:`learn_skills` runs them all (:func:`learn_from_segments` all but the first).
+:func:`save_skills` / :func:`load_skills` persist the result.
 """
 
 from bpns.learning.artifacts import ArtifactError, describe, load_skills, save_skills
 from bpns.learning.config import LearningConfig, MLPConfig
 from bpns.learning.operators import SkillDataset, applicable_bindings, learn_operators
 from bpns.learning.partition import SegmentGroup, partition_segments
-from bpns.learning.pipeline import LearnedSkills, LearningStats, SkillStats, learn_skills
+from bpns.learning.pipeline import (
+    LearnedSkills,
+    LearningStats,
+    SkillStats,
+    learn_from_segments,
+    learn_skills,
+)
 from bpns.learning.policies import LearnedPolicy, ScopeDims, learn_policy
 from bpns.learning.samplers import CurrentStateSampler, LearnedSampler, learn_sampler
 from bpns.learning.segmentation import segment_demonstration, segment_demonstrations
@@ -30,6 +36,7 @@ __all__ = [
     "SkillStats",
     "applicable_bindings",
     "describe",
+    "learn_from_segments",
     "learn_operators",
     "learn_policy",
     "learn_sampler",

@@ -3,8 +3,9 @@
 - GNN Meta / GNN Meta No Subgoal: one metacontroller, labelled with the operators BPNS
   learned (``skills``); the No-Subgoal variant runs it with No-Subgoal skills, whose
   operators are the same (operator learning does not depend on subgoals).
-- BPNS No Subgoal: skills learned with ``use_subgoals=False`` (same segmentation,
-  operators and policy networks, policies without subgoal input, no samplers).
+- BPNS No Subgoal: skills learned with ``use_subgoals=False`` from the BPNS skills'
+  segments (same segmentation, operators and policy networks, policies without subgoal
+  input, no samplers).
 - GNN BC: a GNN policy trained on (subsampled) demonstrated steps.
 
 :func:`save_baselines` writes them into a skills directory: ``gnn_meta.npz``,
@@ -38,7 +39,7 @@ from bpns.learning.gnn_artifacts import (
 from bpns.learning.gnn_bc import GNNPolicy, bc_examples, train_bc_policy
 from bpns.learning.gnn_meta import GNNMetacontroller, metacontroller_examples, train_metacontroller
 from bpns.learning.graphs import GraphVocabulary
-from bpns.learning.pipeline import LearnedSkills, learn_skills
+from bpns.learning.pipeline import LearnedSkills, learn_from_segments
 from bpns.structs import Demonstration, Predicate, Type
 
 NOSUBGOAL_DIR = "nosubgoal"
@@ -112,7 +113,6 @@ def learn_baselines(
     demos: Sequence[Demonstration],
     predicates: Collection[Predicate],
     types: Collection[Type],
-    contact_predicates: Collection[Predicate],
     skills: LearnedSkills,
     config: BaselinesConfig | None = None,
     report: Callable[[str], None] | None = None,
@@ -120,12 +120,20 @@ def learn_baselines(
 ) -> LearnedBaselines:
     """Learn the baselines ``config`` asks for. ``predicates`` and ``types`` are the
     environment's declared ones (they fix the graph vocabulary); ``skills`` are the
-    BPNS skills learned from the same ``demos`` (their operators label the
-    metacontroller's data; their learning config gives segmentation, the
-    No-Subgoal skills' settings and, unless ``config.seed`` is set, the GNNs' seed)."""
+    BPNS skills learned from the same ``demos``: the segments they were learned from
+    (``skills.segments``) are what the metacontroller's data labels with their operators
+    and what the No-Subgoal skills learn from, with their learning config's settings;
+    unless ``config.seed`` is set, that config's seed seeds the GNNs."""
     config = BaselinesConfig() if config is None else config
     config = config.seeded(skills.config.seed if config.seed is None else config.seed)
     say = report or (lambda message: None)
+    if (config.meta is not None or config.nosubgoal) and len(skills.segments) != len(demos):
+        raise ValueError(
+            f"the skills carry the segments of {len(skills.segments)} demonstrations, and "
+            f"{len(demos)} were given: GNN Meta and No Subgoal learn from the segments the "
+            "skills were learned from (learn_skills records them; skills loaded from disk "
+            "carry none)"
+        )
     vocab = GraphVocabulary.build(types, predicates)
     seconds: dict[str, float] = {}
     meta = meta_stats = None
@@ -133,9 +141,7 @@ def learn_baselines(
     if config.meta is not None:
         say("GNN Meta: labelling segments with the learned operators")
         t0 = time.perf_counter()
-        examples, skipped = metacontroller_examples(
-            demos, predicates, contact_predicates, skills.operators, skills.config.settle_steps
-        )
+        examples, skipped = metacontroller_examples(demos, skills.segments, skills.operators)
         say(f"GNN Meta: training on {len(examples)} decisions")
         meta, meta_stats = train_metacontroller(vocab, skills.operators, examples, config.meta)
         seconds["gnn_meta"] = time.perf_counter() - t0
@@ -154,13 +160,17 @@ def learn_baselines(
     if config.nosubgoal:
         say("No Subgoal: learning skills without subgoals")
         t0 = time.perf_counter()
-        nosub = learn_skills(
+        # the BPNS skills' segmentation (a No-Subgoal skill differs only in its policy),
+        # its time counted as this pipeline's own segment stage
+        stages = dict(skills.stats.stage_seconds) if skills.stats is not None else {}
+        nosub = learn_from_segments(
             demos,
+            skills.segments,
             predicates,
-            contact_predicates,
             dataclasses.replace(skills.config, use_subgoals=False),
             report,
             given,
+            segment_seconds=stages.get("segment", 0.0),
         )
         seconds["nosubgoal"] = time.perf_counter() - t0
     return LearnedBaselines(
@@ -228,7 +238,6 @@ def learn_baselines_into(
         demos,
         env.predicates,
         env.types,
-        env.contact_predicates,
         skills,
         config,
         report=report,

@@ -1,9 +1,10 @@
 """GNN metacontroller (the paper's "GNN Meta" baseline): (state, abstract state, goal)
 -> next ground skill.
 
-Training data reuses BPNS learning: demonstrations are segmented exactly as for skill
-learning, and each segment is labelled with the learned operator (and binding) whose
-ground preconditions hold at its start and whose ground effects are its effects.
+Training data reuses BPNS learning: each segment skill learning cut the demonstrations
+into (its own segmentation, not a second one) is labelled with the learned operator
+(and binding) whose ground preconditions hold at its start and whose ground effects are
+its effects.
 Segments of filtered (rare) operators have no label and are skipped.
 
 Outputs: the operator as a one-hot on the global node; for each argument slot k a
@@ -15,7 +16,7 @@ scores). None when no operator is applicable.
 
 from __future__ import annotations
 
-from collections.abc import Collection, Iterable, Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -31,13 +32,11 @@ from bpns.learning.gnn import (
 )
 from bpns.learning.graphs import GraphInput, GraphVocabulary, batch_graphs, encode_graph
 from bpns.learning.operators import applicable_bindings
-from bpns.learning.segmentation import segment_demonstration
 from bpns.structs import (
     Demonstration,
     GroundAtom,
     GroundOperator,
     Object,
-    Predicate,
     Segment,
     State,
     STRIPSOperator,
@@ -74,16 +73,18 @@ def label_segment(
 
 
 def metacontroller_examples(
-    demos: Iterable[Demonstration],
-    predicates: Collection[Predicate],
-    contact_predicates: Collection[Predicate],
+    demos: Sequence[Demonstration],
+    segments: Sequence[Sequence[Segment]],
     operators: Sequence[STRIPSOperator],
-    settle_steps: int = 1,
 ) -> tuple[list[MetaExample], int]:
-    """Labelled decisions from ``demos`` and the number of segments left unlabelled."""
+    """Labelled decisions from ``demos``, cut into ``segments`` (per demo, in order: the
+    segmentation the operators were learned from, ``LearnedSkills.segments``), and the
+    number of segments left unlabelled."""
+    if len(segments) != len(demos):
+        raise ValueError(f"segments of {len(segments)} demonstrations given for {len(demos)}")
     examples, skipped = [], 0
-    for demo in demos:
-        for seg in segment_demonstration(demo, predicates, contact_predicates, settle_steps):
+    for demo, segs in zip(demos, segments, strict=True):
+        for seg in segs:
             label = label_segment(seg, operators)
             if label is None:
                 skipped += 1

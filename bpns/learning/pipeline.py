@@ -30,7 +30,7 @@ from bpns.learning.samplers import (
     sampler_training_data,
     train_sampler,
 )
-from bpns.learning.segmentation import segment_demonstrations
+from bpns.learning.segmentation import segment_demonstration
 from bpns.learning.sharing import shared_data
 from bpns.pools import make_pool
 from bpns.structs import Demonstration, Predicate, Segment, Skill, STRIPSOperator, Type
@@ -83,6 +83,10 @@ class LearnedSkills:
     predicates: frozenset[Predicate]
     config: LearningConfig
     stats: LearningStats | None = None
+    #: per demonstration, in order, the segments the skills were learned from, so the
+    #: baselines label the same segmentation instead of redoing it; () for skills loaded
+    #: from disk or built by hand (never saved: it holds the demonstrations' states)
+    segments: tuple[tuple[Segment, ...], ...] = ()
 
     @property
     def operators(self) -> tuple[STRIPSOperator, ...]:
@@ -142,14 +146,48 @@ def learn_skills(
     same weights, bit for bit, as in one process).
     """
     config = LearningConfig() if config is None else config
-    say = report or (lambda message: None)
     check_demonstrations(demos)  # one NaN would silently poison every weight
+    if report is not None:
+        report(f"segmenting {len(demos)} demonstrations")
+    t0 = time.perf_counter()
+    per_demo = tuple(
+        tuple(segment_demonstration(demo, predicates, contact_predicates, config.settle_steps))
+        for demo in demos
+    )
+    return learn_from_segments(
+        demos,
+        per_demo,
+        predicates,
+        config,
+        report,
+        given,
+        workers,
+        segment_seconds=time.perf_counter() - t0,
+    )
+
+
+def learn_from_segments(
+    demos: Sequence[Demonstration],
+    per_demo: Sequence[Sequence[Segment]],
+    predicates: Collection[Predicate],
+    config: LearningConfig | None = None,
+    report: Callable[[str], None] | None = None,
+    given: Sequence[GivenSkill] = (),
+    workers: int = 1,
+    segment_seconds: float = 0.0,
+) -> LearnedSkills:
+    """:func:`learn_skills` from ``demos`` already checked and cut into ``per_demo``
+    segments (per demo, in order: ``LearnedSkills.segments``), so that other settings
+    (e.g. the No-Subgoal baseline's) learn from one segmentation instead of redoing it;
+    ``config.settle_steps`` is not used again. ``segment_seconds``, what cutting them
+    took, is recorded as the segment stage."""
+    config = LearningConfig() if config is None else config
+    say = report or (lambda message: None)
+    if len(per_demo) != len(demos):
+        raise ValueError(f"segments of {len(per_demo)} demonstrations given for {len(demos)}")
     timer = _Timer()
-    say(f"segmenting {len(demos)} demonstrations")
-    with timer.stage("segment"):
-        segments = segment_demonstrations(
-            demos, predicates, contact_predicates, config.settle_steps
-        )
+    timer.seconds["segment"] = segment_seconds
+    segments = [seg for segs in per_demo for seg in segs]  # in demo order
     if not segments:
         raise ValueError("the demonstrations contain no segment with effects: nothing to learn")
     say(f"partitioning {len(segments)} segments")
@@ -257,7 +295,11 @@ def learn_skills(
         stage_seconds=tuple((s, timer.seconds.get(s, 0.0)) for s in STAGES),
     )
     return LearnedSkills(
-        tuple(s for s in skills if s is not None), frozenset(predicates), config, stats
+        tuple(s for s in skills if s is not None),
+        frozenset(predicates),
+        config,
+        stats,
+        tuple(tuple(segs) for segs in per_demo),
     )
 
 
