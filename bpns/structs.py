@@ -129,14 +129,10 @@ class State:
         return np.concatenate([self.data[o] for o in objects])
 
     def objects_of_type(self, type_: Type) -> tuple[Object, ...]:
-        return self._by_type.get(type_, ())
-
-    @functools.cached_property
-    def _by_type(self) -> dict[Type, tuple[Object, ...]]:
-        out: dict[Type, list[Object]] = {}
-        for o in self.objects:
-            out.setdefault(o.type, []).append(o)
-        return {t: tuple(objs) for t, objs in out.items()}
+        # identity first: the objects of one environment share their Type instances, and
+        # comparing two frozen dataclasses field by field is what made this slow (nothing
+        # is cached per state: a dataset holds ~10^5 of them)
+        return tuple(o for o in self.objects if o.type is type_ or o.type == type_)
 
     def allclose(self, other: State, atol: float = 0.0) -> bool:
         """Feature-wise equality (exact by default)."""
