@@ -24,6 +24,10 @@ the step whose samples actually change the state (e.g. the grasp that decides a 
 This is a heuristic: ``n_samples`` failures from a state are taken as evidence that
 samples from a nearby state fail too. ``PlanningConfig.nogood_atol=None`` switches it off
 (the paper's plain backtracking).
+
+The module also holds the plan call's two other memories: :class:`PrefixCache` (refined
+prefixes, reused by later skeletons) and :class:`SetAsidePrefixes` (prefixes whose last
+step failed from several arrivals, see ``PlanningConfig.set_aside_after``).
 """
 
 from __future__ import annotations
