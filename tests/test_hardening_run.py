@@ -110,3 +110,19 @@ def test_run_collects_then_prints_the_demos_and_the_replay_check_in_that_order(t
         ["replayed", "2"],
     ]
     assert lines[-1].endswith("2/2 exact and reaching their goal")
+
+
+def test_run_that_cannot_learn_from_its_demos_says_why_in_one_line(tmp_path, capsys, monkeypatch):
+    import bpns.cli.run as run_command
+    from bpns.workflow import CannotLearnError
+
+    def cannot(env, demos_path, *args, **kwargs):
+        raise CannotLearnError(f"cannot learn from {demos_path}: no segment with effects")
+
+    monkeypatch.setattr(run_command, "learn_to_directory", cannot)
+    out = tmp_path / "r"
+    argv = ["run", "--env", "cover", "--demos", "2", "--tasks", "1", "--workers", "1"]
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"bpns: error: cannot learn from {out / 'demos.h5'}: no segment with effects"]
+    assert (out / "demos.h5").exists()  # what was collected is kept

@@ -37,13 +37,19 @@ from bpns.cli.paths import (
     check_skills_dir,
     writing,
 )
+from bpns.data.datasets import DatasetError
 from bpns.data.demos import check_replay
 from bpns.env.environment import Environment
 from bpns.evaluation.evaluate import EvalReport
 from bpns.learning import LearnedSkills, LearningConfig, describe
 from bpns.learning.config import learning_config_for
 from bpns.planning.config import PlanningConfig, planning_config_for
-from bpns.workflow import baselines_needed, collect_demos, learn_to_directory
+from bpns.workflow import (
+    CannotLearnError,
+    baselines_needed,
+    collect_demos,
+    learn_to_directory,
+)
 
 if TYPE_CHECKING:
     from bpns.learning.baselines import BaselinesConfig
@@ -216,16 +222,19 @@ def learn(config: RunConfig) -> LearnedSkills:
     was learned, described (evaluation loads the saved directory, as ``bpns eval``)."""
     stages = config.stages
     _step("learn" + (f" (and the baselines {', '.join(stages)})" if stages else ""))
-    learned_run = learn_to_directory(
-        config.env,
-        config.demos_path,
-        config.skills_dir,
-        config.learning,
-        progress=progress,
-        report=stage_reporter(),
-        baselines=config.baselines,
-        workers=config.workers,
-    )
+    try:
+        learned_run = learn_to_directory(
+            config.env,
+            config.demos_path,
+            config.skills_dir,
+            config.learning,
+            progress=progress,
+            report=stage_reporter(),
+            baselines=config.baselines,
+            workers=config.workers,
+        )
+    except (DatasetError, CannotLearnError) as err:  # as `bpns learn` says it
+        raise UserError(str(err)) from None
     print_lines(learned_run)
     print(describe(learned_run.learned))
     return learned_run.learned
