@@ -8,7 +8,6 @@ wall-clock time per stage. Same demos, predicates and config give identical weig
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from collections.abc import Callable, Collection, Iterator, Sequence
@@ -330,14 +329,6 @@ class TrainedNetworks:
 def train_networks(job: NetworkJob) -> TrainedNetworks:
     """Train one skill's policy and sampler. Seeded and on ``job.threads`` torch threads,
     so a worker process returns bit-identical weights to the caller's own process."""
-    policy, policy_seconds = train_job_policy(job)
-    sampler, sampler_seconds = train_job_sampler(job)
-    return TrainedNetworks(policy, sampler, policy_seconds, sampler_seconds)
-
-
-def train_job_policy(job: NetworkJob) -> tuple[LearnedPolicy, float]:
-    """The job's policy and the seconds it took (a worker's task of its own: the
-    policy and the sampler of a skill train independently, each from its own seed)."""
     import torch  # heavy; `bpns` commands that learn nothing never load it
 
     torch.set_num_threads(job.threads)
@@ -353,32 +344,23 @@ def train_job_policy(job: NetworkJob) -> tuple[LearnedPolicy, float]:
         c.near_goal_scale,
         c.linear_policy_base,
     )
-    return policy, time.perf_counter() - t0
-
-
-def train_job_sampler(job: NetworkJob) -> tuple[LearnedSampler | CurrentStateSampler, float]:
-    """The job's sampler (the current state without subgoals) and the seconds it took."""
-    if job.sampler_data is None:
-        return CurrentStateSampler(), 0.0
-    import torch
-
-    torch.set_num_threads(job.threads)
-    c = job.config
-    t0 = time.perf_counter()
-    gen_x, gen_y, cls_data = job.sampler_data
-    sampler = train_sampler(
-        gen_x,
-        gen_y,
-        cls_data,
-        job.dims,
-        c.generator,
-        c.classifier,
-        job.sampler_seed,
-        c.max_rejection_tries,
-        c.linear_sampler_base,
-        c.novelty_floor if c.refuse_novel_starts else None,
-    )
-    return sampler, time.perf_counter() - t0
+    t1 = time.perf_counter()
+    sampler: LearnedSampler | CurrentStateSampler = CurrentStateSampler()
+    if job.sampler_data is not None:
+        gen_x, gen_y, cls_data = job.sampler_data
+        sampler = train_sampler(
+            gen_x,
+            gen_y,
+            cls_data,
+            job.dims,
+            c.generator,
+            c.classifier,
+            job.sampler_seed,
+            c.max_rejection_tries,
+            c.linear_sampler_base,
+            c.novelty_floor if c.refuse_novel_starts else None,
+        )
+    return TrainedNetworks(policy, sampler, t1 - t0, time.perf_counter() - t1)
 
 
 def _torch_threads() -> int:
@@ -396,8 +378,7 @@ class _Trainer:
         self.workers = workers
         self.seconds = 0.0
         self._pool: Executor | None = None
-        # per job: its networks, or the futures of its policy and its sampler
-        self._pending: list[TrainedNetworks | tuple[Future, Future]] = []
+        self._pending: list[Future[TrainedNetworks] | TrainedNetworks] = []
 
     def __enter__(self) -> _Trainer:
         return self
@@ -414,27 +395,13 @@ class _Trainer:
         else:
             if self._pool is None:
                 self._pool = make_pool(self.workers)
-            # two tasks, each sent only its own data: with several skills' networks in
-            # flight the last ones to finish are half as long
-            policy_part = dataclasses.replace(job, sampler_data=None)
-            sampler_part = dataclasses.replace(job, scopes=(), actions=())
-            self._pending.append(
-                (
-                    self._pool.submit(train_job_policy, policy_part),
-                    self._pool.submit(train_job_sampler, sampler_part),
-                )
-            )
+            self._pending.append(self._pool.submit(train_networks, job))
         self.seconds += time.perf_counter() - t0
 
     def results(self) -> list[TrainedNetworks]:
         """Every submitted job's networks, in submission order."""
         t0 = time.perf_counter()
-        out = []
-        for p in self._pending:
-            if isinstance(p, tuple):
-                (policy, policy_seconds), (sampler, sampler_seconds) = (f.result() for f in p)
-                p = TrainedNetworks(policy, sampler, policy_seconds, sampler_seconds)
-            out.append(p)
+        out = [p.result() if isinstance(p, Future) else p for p in self._pending]
         self.seconds += time.perf_counter() - t0
         return out
 
