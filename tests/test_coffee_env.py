@@ -184,6 +184,7 @@ def test_liquid_rises_only_when_tilted_over_a_cup_and_pouring_on_the_table_spill
     assert rising.any() and np.all(tilts[1:][rising] > POUR_TILT)
     assert CUP_FILLED.holds(poured[-1], (cup,))
     assert poured[-1].get(pot, "spilled") == 0.0
+    assert not any(env.capabilities.dead_end(x) for x in (*over, *poured))
     # tilt back, carry it away from the cups and tilt over the table: a spill, and the
     # task has failed
     s = _run(env, poured[-1], phases[4:5])[-1]
@@ -199,6 +200,7 @@ def test_liquid_rises_only_when_tilted_over_a_cup_and_pouring_on_the_table_spill
     assert s.get(cup, "liquid") == filled
     assert s.get(pot, "spilled") == 1.0
     assert not CUP_FILLED.holds(s, (cup,))
+    assert env.capabilities.dead_end(s)  # the planner's rollouts end here
 
 
 def test_train_tasks_have_one_or_two_cups_and_eval_tasks_two_or_three(env):

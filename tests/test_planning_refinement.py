@@ -1,3 +1,4 @@
+import dataclasses
 import time
 
 import numpy as np
@@ -92,6 +93,23 @@ def test_stuck_detection_fails_a_sample_quickly():
     cfg = PlanningConfig(n_samples=1, stuck_steps=4, max_skill_horizon=1000)
     res = run(task, [(toy.PRESS_DIRECT, ("robot", "button0"))], toy.skills(), cfg)
     # 10 steps to the reach limit at x=5, then 4 unchanged steps
+    assert res.stats.sim_steps == 10 + 4
+
+
+def test_a_rollout_ends_at_once_in_a_declared_dead_end():
+    """10 steps to the reach limit, where the cliff env declares a dead end: the sample
+    fails there instead of waiting out stuck_steps (or the horizon)."""
+    task = toy.make_task([8.0])
+    cfg = PlanningConfig(n_samples=1, stuck_steps=4, max_skill_horizon=1000)
+    plan = skeleton(task, [(toy.PRESS_DIRECT, ("robot", "button0"))])
+    skills = [by_op(toy.skills())[o.operator] for o in plan.operators]
+    rng = np.random.default_rng(0)
+    res = refine(plan, skills, task, toy.CliffEnv(), cfg, rng)
+    assert res.stats.failures("dead_end") == 1 and res.stats.sim_steps == 10
+    # the paper's rollouts run on: here until the world stands still
+    paper = dataclasses.replace(cfg, end_at_dead_end=False)
+    res = refine(plan, skills, task, toy.CliffEnv(), paper, rng)
+    assert res.stats.failures("dead_end") == 0 and res.stats.failures("stuck") == 1
     assert res.stats.sim_steps == 10 + 4
 
 

@@ -184,6 +184,18 @@ class SlowEnv(ToyStickButton):
         return super().simulate(state, action)
 
 
+def fell_off(state: State) -> bool:
+    robot = next(o for o in state.objects if o.type == ROBOT)
+    return state.get(robot, "x") >= REACH
+
+
+class CliffEnv(ToyStickButton):
+    """The track ends at the robot's reach: a robot that gets there has fallen off, from
+    where no goal can be reached (a declared dead end)."""
+
+    capabilities = Capabilities(dead_end=fell_off)
+
+
 def objects(n_buttons: int) -> tuple[Object, Object, list[Object]]:
     return (
         Object("robot", ROBOT),

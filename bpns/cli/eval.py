@@ -67,6 +67,13 @@ def configure(p: argparse.ArgumentParser) -> None:
         "failed every sample from this many arrivals, or 'off' for the paper's "
         "backtracking (default: the env's or 3)",
     )
+    p.add_argument(
+        "--run-past-dead-ends",
+        action="store_true",
+        help="simulate a rollout on in a state the environment declares a dead end (e.g. "
+        "Coffee's spilled coffee) until its horizon, as the paper's planner does "
+        "(default: it fails there at once)",
+    )
     p.add_argument("--out", type=path_arg, help="output directory (results.json, results.md)")
     p.add_argument("--workers", type=positive, default=default_workers())
     p.add_argument(
@@ -152,6 +159,7 @@ def run(args: argparse.Namespace) -> int:
             n_samples=args.n_samples,
             nogood_atol=None if args.nogood_atol == "off" else args.nogood_atol,
             set_aside_after=None if args.set_aside_after == "off" else args.set_aside_after,
+            end_at_dead_end=False if args.run_past_dead_ends else None,
         )
         if args.nogood_atol == "off":
             base = dataclasses.replace(base, nogood_atol=None)

@@ -4,8 +4,9 @@ bpns never imports a simulator or names a domain: an environment declares its ty
 predicates (and which of them are contact-related, for segmentation), action bounds,
 task distributions and its exact transition function ``simulate``. What it may offer
 beyond that (planning and learning defaults, hand-written or given skills, perturbed
-physics, what policies observe) it declares in one :class:`Capabilities` value, so bpns
-reads declarations instead of probing for attributes.
+physics, what policies observe, states from which no goal can be reached) it declares in
+one :class:`Capabilities` value, so bpns reads declarations instead of probing for
+attributes.
 """
 
 from __future__ import annotations
@@ -47,6 +48,10 @@ class Capabilities:
                        None: nominal physics only.
     observe:           ``observe(env, state)``: what the skills' policies see of a state
                        (e.g. noisy features); None: the state itself.
+    dead_end:          ``dead_end(state)``: can no plan from ``state`` reach any goal any
+                       more (e.g. Coffee's spilled coffee: no cup counts as filled again)?
+                       Refinement ends a rollout that reaches one at once instead of
+                       simulating out the skill's horizon; None: no state is one.
 
     The last two take the environment because one declaration (a class attribute) serves
     every instance, including the perturbed copies ``perturbed`` returns.
@@ -60,6 +65,7 @@ class Capabilities:
     default_camera: str = "overview"
     perturbed: Callable[[Environment, Perturbation], Environment] | None = None
     observe: Callable[[Environment, State], State] | None = None
+    dead_end: Callable[[State], bool] | None = None
 
     def __post_init__(self) -> None:  # read-only: one declaration shared by every instance
         if not 0.0 <= self.demo_noise < float("inf"):

@@ -36,6 +36,7 @@ class RolloutConfig:
     stuck_steps: int = 10
     stuck_atol: float = 1e-3
     end_on_contact_change: bool = False
+    end_at_dead_end: bool = True
 
     @classmethod
     def of(cls, config: object) -> RolloutConfig:
@@ -45,6 +46,7 @@ class RolloutConfig:
             stuck_steps=config.stuck_steps,  # type: ignore[attr-defined]
             stuck_atol=config.stuck_atol,  # type: ignore[attr-defined]
             end_on_contact_change=config.end_on_contact_change,  # type: ignore[attr-defined]
+            end_at_dead_end=config.end_at_dead_end,  # type: ignore[attr-defined]
         )
 
 
@@ -135,6 +137,7 @@ class SkillExecutor:
         self.last_actions: list[np.ndarray] = []
         self.last_subgoal: np.ndarray | None = None
         self.observe = observation_of(env)
+        self.dead_end = env.capabilities.dead_end if config.end_at_dead_end else None
         # every ground contact-related atom over the task's objects (segmentation's set)
         self.contact_watch: list = []
         if config.end_on_contact_change:
@@ -179,6 +182,7 @@ class SkillExecutor:
         deadline = self.deadline
         stuck_steps = self.config.stuck_steps
         observe = self.observe
+        dead_end = self.dead_end
         actions: list[np.ndarray] = []
         self.last_actions, self.last_subgoal = actions, subgoal
         states: list[State] = []
@@ -206,6 +210,8 @@ class SkillExecutor:
             states.append(state)
             if _complete(state, must_hold, must_not_hold):
                 return Executed(actions, states)
+            if dead_end is not None and dead_end(state):
+                return FailureReason.DEAD_END
             if watch is not None and self.contact_values(state) != watch:
                 return FailureReason.CONTACT_CHANGED
             # ``feats`` is an anchor: the state where the world last stood still. Comparing

@@ -25,6 +25,7 @@ class FailureReason(str, enum.Enum):
     POLICY_NONFINITE = "policy_nonfinite"  # ... or returned NaN/inf
     SKILL_HORIZON = "skill_horizon"  # the skill's expected atoms never held in time
     STUCK = "stuck"  # the world stopped changing
+    DEAD_END = "dead_end"  # the environment declares the state a dead end
     CONTACT_CHANGED = "unexpected_contact_change"  # a contact atom changed unexpectedly
     TASK_HORIZON = "task_horizon"  # the task's step budget would be exceeded
     NOGOOD = "nogood"  # refinement refuted a step from memory (no sample drawn)
@@ -52,6 +53,8 @@ MEANING: dict[FailureReason, str] = {
     FailureReason.POLICY_NONFINITE: "the policy returned NaN/inf",
     FailureReason.SKILL_HORIZON: "the step's atoms did not hold within the skill's horizon",
     FailureReason.STUCK: "the world stopped changing before the step's atoms held",
+    FailureReason.DEAD_END: "the rollout reached a state from which no goal can be reached "
+    "(the environment's dead_end, e.g. spilled coffee)",
     FailureReason.CONTACT_CHANGED: "a contact atom the step should not touch changed",
     FailureReason.TASK_HORIZON: "the task's step budget would be exceeded",
     FailureReason.NOGOOD: "refuted from memory: the same state already failed here",

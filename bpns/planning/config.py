@@ -56,6 +56,10 @@ class PlanningConfig:
     end_on_contact_change: end a skill at the first change of a contact-related atom (as
                        segmentation does): success if the expected atoms hold then, else
                        an immediate sample failure instead of waiting out H_skill.
+    end_at_dead_end:   end a rollout at once, as a failed sample, in a state the
+                       environment declares a dead end (``Capabilities.dead_end``: no goal
+                       is reachable from it any more, e.g. Coffee's spilled coffee) instead
+                       of waiting out H_skill. False: every rollout runs on (the paper's).
     """
 
     n_abstract: int = 8
@@ -69,6 +73,7 @@ class PlanningConfig:
     max_plan_length: int = 100
     max_state_repeats: int = 0
     end_on_contact_change: bool = False
+    end_at_dead_end: bool = True
     nogood_atol: float | None = 5e-3
     set_aside_after: int | None = 3
     reuse_prefixes: bool = True

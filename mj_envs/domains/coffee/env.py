@@ -56,6 +56,7 @@ from mj_envs.domains.coffee.rules import (
     hand_angles,
     handle_centre,
     home_quat,
+    spilled,
 )
 from mj_envs.domains.coffee.skills import oracle_skills
 from mj_envs.parts import button as push_button
@@ -77,6 +78,7 @@ class CoffeeEnv(MujocoEnv):
         oracle_skills=oracle_skills,
         perturbed=perturbed,
         observe=observe,
+        dead_end=spilled,
     )
     controller_config = CONTROLLER
 

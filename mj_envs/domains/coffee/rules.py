@@ -215,12 +215,17 @@ def _not_above_cup(state: State, objs: Sequence[Object]) -> bool:
     return not any(pot_above_cup(state, pot, c) for c in state.objects_of_type(CUP))
 
 
+def spilled(state: State) -> bool:
+    """Has coffee been spilled? Then no CupFilled holds again, and every task's goal
+    fills a cup: the environment's dead end (``Capabilities.dead_end``)."""
+    return any(state.get(p, "spilled") > 0.5 for p in state.objects_of_type(POT))
+
+
 def _cup_filled(state: State, objs: Sequence[Object]) -> bool:
     cup = objs[0]
-    if any(state.get(p, "spilled") > 0.5 for p in state.objects_of_type(POT)):
-        return False
     liquid = state.get(cup, "liquid")
-    return state.get(cup, "target") <= liquid <= state.get(cup, "capacity")
+    # the cheap test first: segmentation evaluates this on every demonstrated state
+    return state.get(cup, "target") <= liquid <= state.get(cup, "capacity") and not spilled(state)
 
 
 HOLDING = Predicate("Holding", (ROBOT, POT), _holding)
