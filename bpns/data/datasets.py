@@ -250,8 +250,13 @@ def _read_demo(g: h5py.Group, env: Environment, features_only: bool) -> Demonstr
         # only the environment knows its flat state size: let it load the first state
         env.state_from_flat(world, flats[0], State({o: v[0] for o, v in feats.items()}))
         sims = [SimState(world, flat) for flat in flats]
-    columns = [(o, list(v)) for o, v in feats.items()]  # row views, made once per object
-    states = tuple(State({o: rows_of[i] for o, rows_of in columns}, sims[i]) for i in range(rows))
+    keys = list(feats)
+    # row views, made once per object (every length was checked above)
+    per_row = zip(*(list(v) for v in feats.values()), strict=True)
+    states = tuple(
+        State(dict(zip(keys, row, strict=True)), sim)
+        for row, sim in zip(per_row, sims, strict=True)
+    )
     goal = set()
     for pname, args in goal_spec:
         if pname not in preds:

@@ -13,6 +13,7 @@ from bpns.learning.partition import SegmentGroup, partition_segments
 from bpns.learning.pipeline import (
     LearnedSkills,
     LearningStats,
+    NetworkTrainer,
     SkillStats,
     learn_from_segments,
     learn_skills,
@@ -30,6 +31,7 @@ __all__ = [
     "LearningConfig",
     "LearningStats",
     "MLPConfig",
+    "NetworkTrainer",
     "ScopeDims",
     "SegmentGroup",
     "SkillDataset",
