@@ -98,6 +98,17 @@ def test_eval_ablations_report_in_the_same_table(run_dir, capsys):
     assert "| Samples=1 | 12 |" in out and "| AbstractPlans=1 | 12 |" in out
 
 
+def test_eval_records_whether_rollouts_end_in_dead_ends(run_dir, tmp_path):
+    """The default ends them; --run-past-dead-ends (the paper's) is recorded as such."""
+    for flag, expected in (((), True), (("--run-past-dead-ends",), False)):
+        out = tmp_path / f"ends{expected}"
+        argv = ["eval", "--skills", str(run_dir / "skills"), "-n", "1", "--workers", "1"]
+        code = main([*argv, "--timeout", "30", "--out", str(out), *flag])
+        assert code in (0, 1)
+        planning = json.loads((out / "results.json").read_text())[0]["planning"]
+        assert planning["end_at_dead_end"] is expected
+
+
 def _cli(*args: str, cwd=None) -> subprocess.CompletedProcess:
     return subprocess.run(
         [sys.executable, "-m", "bpns.cli", *args],
