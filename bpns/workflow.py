@@ -161,38 +161,35 @@ def learn_to_directory(
     Raises ``bpns.data.datasets.DatasetError`` for a bad
     file and :class:`CannotLearnError` when the demos cannot be learned from."""
     from bpns.data.datasets import count_demonstrations, iter_demonstrations
-    from bpns.learning import NetworkTrainer, learn_skills, save_skills
+    from bpns.learning import learn_skills, save_skills
     from bpns.learning.given import given_skills_of
 
     total = count_demonstrations(demos_path)
     n = min(total, limit or total)
-    # the training processes start (and import torch) while the demonstrations load
-    with NetworkTrainer(workers, threads) as trainer:
-        trainer.warm_up()
-        t0 = time.perf_counter()
-        loading = iter_demonstrations(demos_path, env, range(n), features_only=True)
-        demos = list(progress(loading, n, "load", "demo"))
-        load_seconds = time.perf_counter() - t0
-        try:
-            learned = learn_skills(
-                demos,
-                env.predicates,
-                env.contact_predicates,
-                config,
-                report,
-                given_skills_of(env),
-                workers=trainer,
-            )
-        except ValueError as err:
-            raise CannotLearnError(f"cannot learn from {demos_path}: {err}") from None
+    t0 = time.perf_counter()
+    loading = iter_demonstrations(demos_path, env, range(n), features_only=True)
+    demos = list(progress(loading, n, "load", "demo"))
+    load_seconds = time.perf_counter() - t0
+    import torch
+
+    torch.set_num_threads(threads)
+    try:
+        learned = learn_skills(
+            demos,
+            env.predicates,
+            env.contact_predicates,
+            config,
+            report,
+            given_skills_of(env),
+            workers=workers,
+        )
+    except ValueError as err:
+        raise CannotLearnError(f"cannot learn from {demos_path}: {err}") from None
     save_skills(learned, out, overwrite=True, env_name=env.name)
     baseline_seconds = None
     if baselines is not None:
-        import torch
-
         from bpns.learning.baselines import learn_baselines_into
 
-        torch.set_num_threads(threads)  # the No-Subgoal skills train in this process
         # after the skills: saving them replaces `out`
         baseline_seconds = learn_baselines_into(out, env, demos, learned, baselines, report)
     # the segments hold every demonstration's states: not kept through what comes next

@@ -8,12 +8,7 @@ import pytest
 import torch
 
 from bpns.env.abstraction import abstract
-from bpns.learning.pipeline import (
-    NetworkTrainer,
-    derive_seed,
-    learn_from_segments,
-    learn_skills,
-)
+from bpns.learning.pipeline import derive_seed, learn_from_segments, learn_skills
 from bpns.learning.samplers import CurrentStateSampler, LearnedSampler
 from tests import toy_learning as toy
 
@@ -115,25 +110,6 @@ def test_networks_trained_in_worker_processes_are_the_same_bit_for_bit():
         assert a.sampler.classifier_params.identical(b.sampler.classifier_params)
     stages = dict(two.stats.stage_seconds)
     assert stages["policies"] > 0 and stages["samplers"] > 0
-
-
-def test_a_trainer_started_early_serves_runs_with_the_same_weights():
-    """A NetworkTrainer warmed up before the data is ready (its processes import torch
-    meanwhile) trains the same networks, and serves two runs one after the other."""
-    demos = toy.demos(4, seed=1)
-    config = toy.fast_config(seed=7, steps=30)
-    one = learn_skills(demos, toy.PREDICATES, toy.CONTACT_PREDICATES, config)
-    with NetworkTrainer(2, threads=1) as trainer:
-        trainer.warm_up()
-        runs = [
-            learn_skills(demos, toy.PREDICATES, toy.CONTACT_PREDICATES, config, workers=trainer)
-            for _ in range(2)
-        ]
-    for run in runs:
-        assert [s.name for s in run.skills] == [s.name for s in one.skills]
-        for a, b in zip(one.skills, run.skills, strict=True):
-            assert a.policy.params.identical(b.policy.params)
-            assert a.sampler.generator_params.identical(b.sampler.generator_params)
 
 
 def test_seeds_differ_per_skill_and_network():

@@ -13,7 +13,6 @@ from bpns.learning.partition import SegmentGroup, partition_segments
 from bpns.learning.pipeline import (
     LearnedSkills,
     LearningStats,
-    NetworkTrainer,
     SkillStats,
     learn_from_segments,
     learn_skills,
@@ -31,7 +30,6 @@ __all__ = [
     "LearningConfig",
     "LearningStats",
     "MLPConfig",
-    "NetworkTrainer",
     "ScopeDims",
     "SegmentGroup",
     "SkillDataset",

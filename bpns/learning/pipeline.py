@@ -133,7 +133,7 @@ def learn_skills(
     config: LearningConfig | None = None,
     report: Callable[[str], None] | None = None,
     given: Sequence[GivenSkill] = (),
-    workers: int | NetworkTrainer = 1,
+    workers: int = 1,
 ) -> LearnedSkills:
     """Learn neuro-symbolic skills from demonstrations (paper §4).
 
@@ -142,8 +142,7 @@ def learn_skills(
     environment's given skills (:mod:`bpns.learning.given`); a learned operator one of
     them produces keeps its policy and sampler instead of trained networks. ``workers``
     > 1 trains the skills' networks in that many processes (:func:`train_networks`: the
-    same weights, bit for bit, as in one process); a :class:`NetworkTrainer` trains them
-    in its processes, started by the caller (e.g. while it loads the demonstrations).
+    same weights, bit for bit, as in one process).
     """
     config = LearningConfig() if config is None else config
     check_demonstrations(demos)  # one NaN would silently poison every weight
@@ -173,7 +172,7 @@ def learn_from_segments(
     config: LearningConfig | None = None,
     report: Callable[[str], None] | None = None,
     given: Sequence[GivenSkill] = (),
-    workers: int | NetworkTrainer = 1,
+    workers: int = 1,
     segment_seconds: float = 0.0,
 ) -> LearnedSkills:
     """:func:`learn_skills` from ``demos`` already checked and cut into ``per_demo``
@@ -204,10 +203,7 @@ def learn_from_segments(
     job_datasets: list[SkillDataset] = []
     learnable = sum(match_given(d.operator, given) is None for d in datasets)
     # each skill's networks start training as soon as its data is ready
-    with _trainer(workers) as trainer:
-        if learnable <= 1:  # nothing to train beside it
-            trainer.in_process = True
-        busy_before = trainer.seconds
+    with _Trainer(workers if learnable > 1 else 1) as trainer:
         for k, dataset in enumerate(datasets):
             produced_by = match_given(dataset.operator, given)
             if produced_by is not None:  # a given skill: its policy and sampler, nothing trained
@@ -268,7 +264,7 @@ def learn_from_segments(
                 actions=tuple(actions),
                 dims=dims,
                 sampler_data=sampler_data,
-                threads=trainer.threads,
+                threads=_torch_threads(),
             )
             jobs.append(job)
             job_datasets.append(dataset)
@@ -279,7 +275,7 @@ def learn_from_segments(
             trainer.submit(job)
         say(f"training the networks of {len(jobs)} skills")
         trained = trainer.results()
-    wall = trainer.seconds - busy_before
+    wall = trainer.seconds
     busy = sum(t.policy_seconds + t.sampler_seconds for t in trained) or 1.0
     for job, dataset, t in zip(jobs, job_datasets, trained, strict=True):
         skills[job.slot] = Skill(dataset.operator, t.policy, t.sampler, _horizon(dataset, config))
@@ -367,71 +363,47 @@ def train_networks(job: NetworkJob) -> TrainedNetworks:
     return TrainedNetworks(policy, sampler, t1 - t0, time.perf_counter() - t1)
 
 
-def _import_torch() -> None:
-    import torch  # noqa: F401  (a worker's start-up: what the first job would wait for)
+def _torch_threads() -> int:
+    import torch
+
+    return torch.get_num_threads()
 
 
-class NetworkTrainer:
-    """Trains the skills' networks of one learning run: in this process (``workers`` <= 1:
-    at once, in order) or in a pool of ``workers`` processes (in the background, while
-    the caller prepares the next job). Jobs run on ``threads`` torch threads (None: this
-    process's count, which imports torch here). :meth:`warm_up` starts the processes
-    early, e.g. while the demonstrations load: each imports torch, which otherwise delays
-    the first skill by a second or two. ``seconds``: the wall time the caller spent
-    training or waiting for the training. Use it as a context manager, which shuts the
-    processes down."""
+class _Trainer:
+    """Trains submitted jobs in this process (one worker: at once, in order) or in a pool
+    of ``workers`` processes (in the background, while the caller prepares the next job).
+    ``seconds``: the wall time the caller spent training or waiting for the training."""
 
-    def __init__(self, workers: int = 1, threads: int | None = None) -> None:
+    def __init__(self, workers: int) -> None:
         self.workers = workers
-        self.in_process = workers <= 1
-        if threads is None:
-            import torch
-
-            threads = torch.get_num_threads()
-        self.threads = threads
         self.seconds = 0.0
         self._pool: Executor | None = None
         self._pending: list[Future[TrainedNetworks] | TrainedNetworks] = []
-        self._entered = 0
 
-    def __enter__(self) -> NetworkTrainer:
-        self._entered += 1
+    def __enter__(self) -> _Trainer:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self._entered -= 1
-        if self._entered <= 0 and self._pool is not None:
+        if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
 
-    def warm_up(self) -> None:
-        """Start the worker processes now (each imports torch) rather than at the first job."""
-        if self.workers > 1 and self._pool is None:
-            self._pool = make_pool(self.workers, _import_torch)
-            for _ in range(self.workers):  # a pool starts a process per waiting task
-                self._pool.submit(int)
-
     def submit(self, job: NetworkJob) -> None:
         t0 = time.perf_counter()
-        if self.in_process:
+        if self.workers <= 1:
             self._pending.append(train_networks(job))
         else:
             if self._pool is None:
-                self._pool = make_pool(self.workers, _import_torch)
+                self._pool = make_pool(self.workers)
             self._pending.append(self._pool.submit(train_networks, job))
         self.seconds += time.perf_counter() - t0
 
     def results(self) -> list[TrainedNetworks]:
-        """Every job submitted since the last call's networks, in submission order."""
+        """Every submitted job's networks, in submission order."""
         t0 = time.perf_counter()
         out = [p.result() if isinstance(p, Future) else p for p in self._pending]
-        self._pending = []
         self.seconds += time.perf_counter() - t0
         return out
-
-
-def _trainer(workers: int | NetworkTrainer) -> NetworkTrainer:
-    return workers if isinstance(workers, NetworkTrainer) else NetworkTrainer(workers)
 
 
 def _other_segments(
