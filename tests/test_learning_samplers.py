@@ -219,6 +219,32 @@ def test_generator_with_linear_base_is_saved_loaded_and_its_mean_is_base_plus_ne
     assert plain.base is None and "linear/w0" not in plain.to_arrays()
 
 
+def test_a_sampler_fit_assembled_from_separately_trained_networks_is_train_samplers():
+    """Learning trains a sampler's generator and classifier as two jobs, possibly in two
+    processes, and assembles them: the same sampler, bit for bit, as training both here."""
+    from bpns.learning.mlp import train_classifier, train_gaussian
+    from bpns.learning.samplers import SamplerFit, train_sampler
+
+    rng = np.random.default_rng(2)
+    gen_x = rng.uniform(-1, 1, size=(40, 2))
+    gen_y = gen_x @ np.array([[1.0], [-2.0]]) + 0.5
+    dims = ScopeDims(2, np.array([0, 1]), np.array([0]))
+    labels = (np.arange(40) % 3 != 0).astype(float)  # a third of the rows are negatives
+    cls_data = np.concatenate((gen_x, gen_y, labels[:, None]), axis=1)
+    net = MLPConfig(num_steps=200, batch_size=32)
+    whole = train_sampler(gen_x, gen_y, cls_data, dims, net, net, 5, 7, True, 0.01)
+    fit = SamplerFit.of(gen_x, gen_y, cls_data, dims, net, 7, True, 0.01)
+    assert fit is not None and fit.classifier_labels is not None
+    generator = train_gaussian(fit.gen_x, fit.gen_target, net, 5)
+    classifier = train_classifier(fit.classifier_x, fit.classifier_labels, net, 6)
+    parts = fit.assemble(generator, classifier)
+    a, b = whole.to_arrays(), parts.to_arrays()
+    assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+    only_positives = np.concatenate((gen_x, gen_y, np.ones((40, 1))), axis=1)
+    assert SamplerFit.of(gen_x, gen_y, only_positives, dims, net).classifier_labels is None
+    assert SamplerFit.of(gen_x, gen_y[:, :0], cls_data, dims, net) is None  # nothing to sample
+
+
 def test_a_linear_base_saved_without_an_input_box_loads_unclipped():
     from bpns.learning.linear import LinearBase
 

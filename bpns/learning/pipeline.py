@@ -14,20 +14,22 @@ from collections.abc import Callable, Collection, Iterator, Sequence
 from concurrent.futures import Executor, Future
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from bpns.learning.config import LearningConfig
 from bpns.learning.demo_checks import check_demonstrations
 from bpns.learning.given import BoundPolicy, BoundSampler, GivenSkill, match_given
+from bpns.learning.mlp import train_classifier, train_gaussian
 from bpns.learning.operators import SkillDataset, learn_operators
 from bpns.learning.partition import SegmentGroup, partition_segments
-from bpns.learning.policies import LearnedPolicy, ScopeDims, scope_trajectories, train_policy
+from bpns.learning.policies import ScopeDims, scope_trajectories, train_policy
 from bpns.learning.samplers import (
     CurrentStateSampler,
     LearnedSampler,
+    SamplerFit,
     sampler_training_data,
-    train_sampler,
 )
 from bpns.learning.segmentation import segment_demonstration
 from bpns.learning.sharing import shared_data
@@ -141,7 +143,7 @@ def learn_skills(
     (for a CLI progress display); learning itself prints nothing. ``given``: the
     environment's given skills (:mod:`bpns.learning.given`); a learned operator one of
     them produces keeps its policy and sampler instead of trained networks. ``workers``
-    > 1 trains the skills' networks in that many processes (:func:`train_networks`: the
+    > 1 trains the skills' networks in that many processes (:func:`train_network`: the
     same weights, bit for bit, as in one process).
     """
     config = LearningConfig() if config is None else config
@@ -199,10 +201,10 @@ def learn_from_segments(
     say(f"{len(datasets)} operators from {len(groups)} groups")
     skills: list[Skill | None] = []
     skill_stats: list[SkillStats] = []
-    jobs: list[NetworkJob] = []
-    job_datasets: list[SkillDataset] = []
+    pending: list[_PendingSkill] = []
     learnable = sum(match_given(d.operator, given) is None for d in datasets)
-    # each skill's networks start training as soon as its data is ready
+    threads = _torch_threads()
+    # each network starts training as soon as its data is ready, while the next is prepared
     with _Trainer(workers if learnable > 1 else 1) as trainer:
         for k, dataset in enumerate(datasets):
             produced_by = match_given(dataset.operator, given)
@@ -241,47 +243,93 @@ def learn_from_segments(
                         scopes, config.change_tolerance, objects=shared.scope
                     )
                     actions = [seg.actions for seg in shared.segments]
-            sampler_data = None
+            policy = trainer.submit(
+                NetworkJob(
+                    "policies",
+                    train_policy,
+                    (
+                        tuple(scopes),
+                        tuple(actions),
+                        dims,
+                        config.policy,
+                        derive_seed(config.seed, k, _POLICY),
+                        config.use_subgoals,
+                        config.near_goal_scale,
+                        config.linear_policy_base,
+                    ),
+                    threads,
+                )
+            )
+            fit = None
+            generator = classifier = None
             negatives = 0
             if config.use_subgoals:
                 with timer.stage("samplers"):
                     lenders = () if shared is None else shared.segments
-                    sampler_data = sampler_training_data(
+                    sampler_seed = derive_seed(config.seed, k, _SAMPLER)
+                    gen_x, gen_y, cls_data = sampler_training_data(
                         dataset,
                         scopes,
                         dims,
                         _other_segments(groups, dataset, exclude=lenders),
                         config.max_negative_bindings_per_segment,
-                        derive_seed(config.seed, k, _SAMPLER),
+                        sampler_seed,
                     )
-                    negatives = int((sampler_data[2][:, -1] == 0).sum())
-            job = NetworkJob(
-                slot=len(skills),
-                config=config,
-                policy_seed=derive_seed(config.seed, k, _POLICY),
-                sampler_seed=derive_seed(config.seed, k, _SAMPLER),
-                scopes=tuple(scopes),
-                actions=tuple(actions),
-                dims=dims,
-                sampler_data=sampler_data,
-                threads=_torch_threads(),
-            )
-            jobs.append(job)
-            job_datasets.append(dataset)
+                    negatives = int((cls_data[:, -1] == 0).sum())
+                    fit = SamplerFit.of(
+                        gen_x,
+                        gen_y,
+                        cls_data,
+                        dims,
+                        config.generator,
+                        config.max_rejection_tries,
+                        config.linear_sampler_base,
+                        config.novelty_floor if config.refuse_novel_starts else None,
+                    )
+                # the seeds train_sampler gives them: the generator's, then + 1
+                if fit is not None:
+                    generator = trainer.submit(
+                        NetworkJob(
+                            "samplers",
+                            train_gaussian,
+                            (fit.gen_x, fit.gen_target, config.generator, sampler_seed),
+                            threads,
+                        )
+                    )
+                if fit is not None and fit.classifier_labels is not None:
+                    classifier = trainer.submit(
+                        NetworkJob(
+                            "samplers",
+                            train_classifier,
+                            (
+                                fit.classifier_x,
+                                fit.classifier_labels,
+                                config.classifier,
+                                sampler_seed + 1,
+                            ),
+                            threads,
+                        )
+                    )
+            pending.append(_PendingSkill(len(skills), dataset, policy, fit, generator, classifier))
             skills.append(None)  # trained below
             skill_stats.append(
                 SkillStats(dataset.operator.name, len(dataset), _num_samples(dataset), negatives)
             )
-            trainer.submit(job)
-        say(f"training the networks of {len(jobs)} skills")
+        say(f"training the networks of {len(pending)} skills")
         trained = trainer.results()
-    wall = trainer.seconds
-    busy = sum(t.policy_seconds + t.sampler_seconds for t in trained) or 1.0
-    for job, dataset, t in zip(jobs, job_datasets, trained, strict=True):
-        skills[job.slot] = Skill(dataset.operator, t.policy, t.sampler, _horizon(dataset, config))
-        # each stage gets its share of the training's wall time
-        for stage, seconds in (("policies", t.policy_seconds), ("samplers", t.sampler_seconds)):
-            timer.seconds[stage] = timer.seconds.get(stage, 0.0) + wall * seconds / busy
+    for p in pending:
+        sampler: LearnedSampler | CurrentStateSampler = CurrentStateSampler()
+        if p.fit is not None and p.generator is not None:
+            cls_params = None if p.classifier is None else trained[p.classifier].network
+            sampler = p.fit.assemble(trained[p.generator].network, cls_params)
+        skills[p.slot] = Skill(
+            p.dataset.operator, trained[p.policy].network, sampler, _horizon(p.dataset, config)
+        )
+    # each stage gets its share of the training's wall time
+    busy = sum(t.seconds for t in trained) or 1.0
+    for t in trained:
+        share = trainer.seconds * t.seconds / busy
+        timer.seconds[t.stage] = timer.seconds.get(t.stage, 0.0) + share
     kept = sum(len(d) for d in datasets)
     stats = LearningStats(
         num_demos=len(demos),
@@ -304,63 +352,46 @@ def learn_from_segments(
 
 @dataclass(frozen=True, eq=False)
 class NetworkJob:
-    """Everything one skill's networks are trained from: plain arrays and configs, so a
-    worker process can train them (the demonstrations stay in the parent)."""
+    """One network to train: a module-level training function and its arguments (plain
+    arrays and configs), so that a worker process can run it while the demonstrations
+    stay in the parent. A skill's policy, generator and classifier are three jobs: on
+    two cores, eight skills of three unequal networks balance better than eight jobs of
+    one skill each. ``stage``: the learning stage its time counts towards."""
 
-    slot: int  # the skill's place in the learned list
-    config: LearningConfig
-    policy_seed: int
-    sampler_seed: int
-    scopes: tuple[np.ndarray, ...]  # per segment: (steps + 1, scope size)
-    actions: tuple[np.ndarray, ...]  # per segment: (steps, action dim), the labels
-    dims: ScopeDims
-    sampler_data: tuple[np.ndarray, np.ndarray, np.ndarray] | None  # None: no subgoals
+    stage: str
+    train: Callable[..., Any]
+    args: tuple[Any, ...]
     threads: int  # torch threads, as in the caller
 
 
 @dataclass(frozen=True, eq=False)
-class TrainedNetworks:
-    policy: LearnedPolicy
-    sampler: LearnedSampler | CurrentStateSampler
-    policy_seconds: float
-    sampler_seconds: float
+class TrainedNetwork:
+    network: Any  # what ``NetworkJob.train`` returned
+    stage: str
+    seconds: float
 
 
-def train_networks(job: NetworkJob) -> TrainedNetworks:
-    """Train one skill's policy and sampler. Seeded and on ``job.threads`` torch threads,
-    so a worker process returns bit-identical weights to the caller's own process."""
+@dataclass(frozen=True, eq=False)
+class _PendingSkill:
+    """A skill whose networks are being trained: the handles of its jobs."""
+
+    slot: int  # its place in the learned list
+    dataset: SkillDataset
+    policy: int
+    fit: SamplerFit | None  # None: no sampler to train (CurrentStateSampler)
+    generator: int | None
+    classifier: int | None
+
+
+def train_network(job: NetworkJob) -> TrainedNetwork:
+    """Train one network. Seeded (by its arguments) and on ``job.threads`` torch
+    threads, so a worker process returns bit-identical weights to the caller's own."""
     import torch  # heavy; `bpns` commands that learn nothing never load it
 
     torch.set_num_threads(job.threads)
-    c = job.config
     t0 = time.perf_counter()
-    policy = train_policy(
-        job.scopes,
-        job.actions,
-        job.dims,
-        c.policy,
-        job.policy_seed,
-        c.use_subgoals,
-        c.near_goal_scale,
-        c.linear_policy_base,
-    )
-    t1 = time.perf_counter()
-    sampler: LearnedSampler | CurrentStateSampler = CurrentStateSampler()
-    if job.sampler_data is not None:
-        gen_x, gen_y, cls_data = job.sampler_data
-        sampler = train_sampler(
-            gen_x,
-            gen_y,
-            cls_data,
-            job.dims,
-            c.generator,
-            c.classifier,
-            job.sampler_seed,
-            c.max_rejection_tries,
-            c.linear_sampler_base,
-            c.novelty_floor if c.refuse_novel_starts else None,
-        )
-    return TrainedNetworks(policy, sampler, t1 - t0, time.perf_counter() - t1)
+    network = job.train(*job.args)
+    return TrainedNetwork(network, job.stage, time.perf_counter() - t0)
 
 
 def _torch_threads() -> int:
@@ -378,7 +409,7 @@ class _Trainer:
         self.workers = workers
         self.seconds = 0.0
         self._pool: Executor | None = None
-        self._pending: list[Future[TrainedNetworks] | TrainedNetworks] = []
+        self._pending: list[Future[TrainedNetwork] | TrainedNetwork] = []
 
     def __enter__(self) -> _Trainer:
         return self
@@ -388,18 +419,20 @@ class _Trainer:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
 
-    def submit(self, job: NetworkJob) -> None:
+    def submit(self, job: NetworkJob) -> int:
+        """Start ``job``; its index in :meth:`results`."""
         t0 = time.perf_counter()
         if self.workers <= 1:
-            self._pending.append(train_networks(job))
+            self._pending.append(train_network(job))
         else:
             if self._pool is None:
                 self._pool = make_pool(self.workers)
-            self._pending.append(self._pool.submit(train_networks, job))
+            self._pending.append(self._pool.submit(train_network, job))
         self.seconds += time.perf_counter() - t0
+        return len(self._pending) - 1
 
-    def results(self) -> list[TrainedNetworks]:
-        """Every submitted job's networks, in submission order."""
+    def results(self) -> list[TrainedNetwork]:
+        """Every submitted job's network, in submission order."""
         t0 = time.perf_counter()
         out = [p.result() if isinstance(p, Future) else p for p in self._pending]
         self.seconds += time.perf_counter() - t0

@@ -315,6 +315,64 @@ def context_dims(gen_x: np.ndarray, gen_y: np.ndarray, dims: ScopeDims) -> np.nd
     return np.asarray(keep, dtype=np.int64)
 
 
+@dataclass(frozen=True, eq=False)
+class SamplerFit:
+    """A sampler before its networks: what the generator and the classifier are trained
+    on, and the parts fitted without them (the ridge base, the novelty test). The two
+    networks are independent (each seeded on its own), so learning can train them in
+    different processes and :meth:`assemble` the sampler from what comes back."""
+
+    dims: ScopeDims
+    gen_x: np.ndarray
+    gen_target: np.ndarray  # what the generator learns: the subgoal, minus the base
+    classifier_x: np.ndarray
+    classifier_labels: np.ndarray | None  # None: no negatives, no classifier
+    max_tries: int
+    base: LinearBase | None
+    novelty: Novelty | None
+
+    @classmethod
+    def of(
+        cls,
+        gen_x: np.ndarray,
+        gen_y: np.ndarray,
+        classifier_data: np.ndarray,
+        dims: ScopeDims,
+        generator_config: MLPConfig,
+        max_tries: int = 100,
+        linear_base: bool = False,
+        novelty_floor: float | None = None,
+    ) -> SamplerFit | None:
+        """None for a skill whose scope never changes in the data: it has nothing to
+        sample (:class:`CurrentStateSampler`)."""
+        if gen_y.shape[1] == 0:
+            return None
+        base = None
+        if linear_base and gen_x.shape[1] > 0:
+            margin = generator_config.input_margin
+            base = LinearBase.fit_if_it_helps(
+                gen_x, gen_y, generator_config.std_floor, 0.1 if margin is None else margin
+            )
+        target = gen_y if base is None else gen_y - base(gen_x)
+        labels = classifier_data[:, -1]
+        novelty = None if novelty_floor is None else Novelty.of(gen_x, gen_y, dims, novelty_floor)
+        return cls(
+            dims,
+            gen_x,
+            target,
+            classifier_data[:, :-1],
+            labels if (labels == 0).any() else None,
+            max_tries,
+            base,
+            novelty,
+        )
+
+    def assemble(self, generator: MLPParams, classifier: MLPParams | None) -> LearnedSampler:
+        return LearnedSampler(
+            self.dims, generator, classifier, self.max_tries, self.base, self.novelty
+        )
+
+
 def train_sampler(
     gen_x: np.ndarray,
     gen_y: np.ndarray,
@@ -327,29 +385,25 @@ def train_sampler(
     linear_base: bool = False,
     novelty_floor: float | None = None,
 ) -> LearnedSampler | CurrentStateSampler:
-    """Train generator and (if there are negatives) classifier; seeds differ per net.
+    """Train generator (``seed``) and, if there are negatives, classifier (``seed + 1``).
     ``linear_base``: the generator learns the residual of a ridge fit (:class:`LinearBase`).
     ``novelty_floor``: the sampler refuses novel starts (:class:`Novelty`).
 
     A skill whose scope never changes in the data has nothing to sample: its subgoal is
     the current scope.
     """
-    if gen_y.shape[1] == 0:
+    fit = SamplerFit.of(
+        gen_x, gen_y, classifier_data, dims, generator_config, max_tries, linear_base, novelty_floor
+    )
+    if fit is None:
         return CurrentStateSampler()
-    base = None
-    if linear_base and gen_x.shape[1] > 0:
-        margin = generator_config.input_margin
-        base = LinearBase.fit_if_it_helps(
-            gen_x, gen_y, generator_config.std_floor, 0.1 if margin is None else margin
-        )
-    target = gen_y if base is None else gen_y - base(gen_x)
-    generator = train_gaussian(gen_x, target, generator_config, seed)
-    labels = classifier_data[:, -1]
+    generator = train_gaussian(fit.gen_x, fit.gen_target, generator_config, seed)
     classifier = None
-    if (labels == 0).any():
-        classifier = train_classifier(classifier_data[:, :-1], labels, classifier_config, seed + 1)
-    novelty = None if novelty_floor is None else Novelty.of(gen_x, gen_y, dims, novelty_floor)
-    return LearnedSampler(dims, generator, classifier, max_tries, base, novelty)
+    if fit.classifier_labels is not None:
+        classifier = train_classifier(
+            fit.classifier_x, fit.classifier_labels, classifier_config, seed + 1
+        )
+    return fit.assemble(generator, classifier)
 
 
 def learn_sampler(
