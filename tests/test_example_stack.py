@@ -46,7 +46,10 @@ def stack():
 def test_stack_pipeline_demos_replay_learn_eval(stack, tmp_path):
     from bpns.data.demo_attempts import attempt_demonstration
 
-    attempts = [attempt_demonstration(stack, stack.task(i, 0, True), [0, i]) for i in range(12)]
+    # 30 demos and 4000 gradient steps: 12 demos at 1500 steps solved 1-3 of 3 on one machine
+    # and none on another (an AVX-512 Xeon): the learned place was at the edge of working,
+    # where rounding decides. Here 2-3 of 5 tasks solved for two learning seeds.
+    attempts = [attempt_demonstration(stack, stack.task(i, 0, True), [0, i]) for i in range(30)]
     assert all(a.solved for a in attempts), [a.explain() for a in attempts if not a.solved]
     path = tmp_path / "stack.h5"
     save_demonstrations(path, stack, [a.demo for a in attempts])
@@ -57,9 +60,9 @@ def test_stack_pipeline_demos_replay_learn_eval(stack, tmp_path):
     config = learning_config_for(stack)
     config = dataclasses.replace(
         config,
-        policy=dataclasses.replace(config.policy, num_steps=1500),
-        generator=dataclasses.replace(config.generator, num_steps=1500),
-        classifier=dataclasses.replace(config.classifier, num_steps=800),
+        policy=dataclasses.replace(config.policy, num_steps=4000),
+        generator=dataclasses.replace(config.generator, num_steps=4000),
+        classifier=dataclasses.replace(config.classifier, num_steps=2000),
     )
     learned = learn_skills(demos, stack.predicates, stack.contact_predicates, config)
     ops = sorted(str(op).split("\n", 1)[1] for op in learned.operators)
@@ -75,5 +78,5 @@ def test_stack_pipeline_demos_replay_learn_eval(stack, tmp_path):
     spec = EvalSpec(
         "stack", "bpns", planning_config_for(stack, timeout=20.0), str(tmp_path / "skills")
     )
-    report = evaluate(spec, num_tasks=3)
+    report = evaluate(spec, num_tasks=5)
     assert report.num_solved >= 1, [o.reason for o in report.outcomes]
