@@ -119,6 +119,19 @@ class State:
     def objects(self) -> tuple[Object, ...]:
         return tuple(sorted(self.data))
 
+    @classmethod
+    def over_sorted(
+        cls, objects: tuple[Object, ...], data: Mapping[Object, np.ndarray], sim: SimState | None
+    ) -> State:
+        """A state whose ``objects`` are given already sorted (the keys of ``data``).
+
+        Why: a demonstration's thousands of states share one object set; loading sorts
+        it once instead of once per state (segmentation asks every state for it).
+        """
+        state = cls(data, sim)
+        state.__dict__["objects"] = objects  # the cached_property's slot
+        return state
+
     def get(self, obj: Object, feature: str) -> float:
         return float(self.data[obj][obj.type.feature_index(feature)])
 

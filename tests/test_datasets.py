@@ -8,6 +8,7 @@ import pytest
 
 from bpns.data.datasets import DatasetError, load_demonstrations, save_demonstrations
 from bpns.data.demos import replay
+from bpns.structs import State
 
 
 def test_saved_demos_replay_exactly_from_their_first_state(tmp_path, cover_env, cover_demos):
@@ -35,6 +36,19 @@ def test_features_only_loading_gives_the_same_demos_without_simulator_states(
         assert a.task.horizon == b.task.horizon and len(a.states) == len(b.states)
         assert all(sa.allclose(sb) for sa, sb in zip(a.states, b.states, strict=True))
         assert all(s.sim is not None for s in a.states) and all(s.sim is None for s in b.states)
+
+
+def test_loaded_states_list_their_objects_sorted_as_a_fresh_state_does(
+    tmp_path, cover_env, cover_demos
+):
+    path = tmp_path / "demos.h5"
+    save_demonstrations(path, cover_env, cover_demos)
+    for demo in load_demonstrations(path, cover_env, features_only=True):
+        for state in demo.states:
+            # loading fills the objects cache once per demo: it must equal what the
+            # property computes from the data
+            assert state.objects == tuple(sorted(state.data)) == State(state.data).objects
+            assert list(state.data) == list(state.objects)
 
 
 def test_corrupt_file_gives_one_clear_error(tmp_path, cover_env):

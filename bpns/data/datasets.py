@@ -250,11 +250,11 @@ def _read_demo(g: h5py.Group, env: Environment, features_only: bool) -> Demonstr
         # only the environment knows its flat state size: let it load the first state
         env.state_from_flat(world, flats[0], State({o: v[0] for o, v in feats.items()}))
         sims = [SimState(world, flat) for flat in flats]
-    keys = list(feats)
+    keys = tuple(sorted(feats))
     # row views, made once per object (every length was checked above)
-    per_row = zip(*(list(v) for v in feats.values()), strict=True)
+    per_row = zip(*(list(feats[o]) for o in keys), strict=True)
     states = tuple(
-        State(dict(zip(keys, row, strict=True)), sim)
+        State.over_sorted(keys, dict(zip(keys, row, strict=True)), sim)
         for row, sim in zip(per_row, sims, strict=True)
     )
     goal = set()
