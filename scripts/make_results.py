@@ -41,18 +41,24 @@ def oracle_rate(env_name: str, n: int, seed: int, train: bool, workers: int) -> 
 
 
 def replay_check(env_name: str, n: int, seed: int, workers: int) -> dict:
+    """Collect ``n`` demonstrations as `bpns demos` does by default (with the DART noise
+    the environment declares), save, load and re-simulate them."""
     from bpns.data.datasets import load_demonstrations, save_demonstrations
+    from bpns.data.demo_attempts import demo_noise_of
     from bpns.data.demos import collect_demonstrations, replay
     from bpns.env.registry import make_environment
 
     env = make_environment(env_name)
+    noise = demo_noise_of(env)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "demos.h5"
-        demos = [d for _, d in collect_demonstrations(env_name, n, seed, workers) if d]
+        collected = collect_demonstrations(env_name, n, seed, workers, noise=noise)
+        demos = [d for _, d in collected if d]
         save_demonstrations(path, env, demos)
         loaded = load_demonstrations(path, env)
         reports = [replay(env, d, i) for i, d in enumerate(loaded)]
     return {
+        "noise": noise,
         "demos": len(reports),
         "steps": sum(r.steps for r in reports),
         "max_state_diff": max(r.max_state_diff for r in reports),
@@ -154,8 +160,13 @@ def main() -> None:
         "",
         f"### {name}: exact replay of saved demonstrations",
         "",
-        f"{rep['demos']} demonstrations ({rep['steps']} control steps) written to HDF5, "
-        "loaded back and re-simulated from their first state:",
+        f"{rep['demos']} demonstrations ({rep['steps']} control steps"
+        + (
+            f"; DART noise {rep['noise']:g}, as `bpns demos` collects them by default"
+            if rep["noise"]
+            else ""
+        )
+        + ") written to HDF5, loaded back and re-simulated from their first state:",
         "",
         f"- max |flat simulator state difference| = {rep['max_state_diff']:g}",
         f"- max |feature difference| = {rep['max_feature_diff']:g}",
