@@ -40,7 +40,7 @@ if TYPE_CHECKING:
     from bpns.evaluation.evaluate import EvalSpec, evaluate
     from bpns.execution.failures import FailureReason
     from bpns.learning import LearnedSkills, LearningConfig, learn_skills
-    from bpns.learning.artifacts import load_skills, save_skills
+    from bpns.learning.artifacts.skills_dir import load_skills, save_skills
     from bpns.planning import PlanningConfig, PlanResult, plan
 
 # public name -> module that defines it
@@ -52,8 +52,8 @@ _LAZY = {
     "learn_skills": "bpns.learning",
     "LearnedSkills": "bpns.learning",
     "LearningConfig": "bpns.learning",
-    "save_skills": "bpns.learning.artifacts",
-    "load_skills": "bpns.learning.artifacts",
+    "save_skills": "bpns.learning.artifacts.skills_dir",
+    "load_skills": "bpns.learning.artifacts.skills_dir",
     "plan": "bpns.planning",
     "PlanResult": "bpns.planning",
     "PlanningConfig": "bpns.planning",

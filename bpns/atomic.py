@@ -25,11 +25,13 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+from bpns.errors import BpnsError
+
 #: errors that say the filesystem cannot take the write (not that the input is bad)
 STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG})
 
 
-class NotEnoughSpaceError(Exception):
+class NotEnoughSpaceError(BpnsError):
     """A write refused before it starts: the filesystem has less space free than the
     write certainly needs (so no work is done only to fail at the end)."""
 

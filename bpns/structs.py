@@ -15,6 +15,8 @@ from typing import Protocol
 
 import numpy as np
 
+from bpns.errors import BpnsError
+
 
 @dataclass(frozen=True, order=True)
 class Type:
@@ -299,7 +301,7 @@ class SubgoalPolicy(Protocol):
     ) -> np.ndarray: ...
 
 
-class NoSubgoal(Exception):
+class NoSubgoal(BpnsError):
     """Raised by a subgoal sampler that has no subgoal worth simulating from this state
     (a hand-written sampler: beyond the arm's reach; a learned one: every draw lies where
     no demonstration went, :mod:`bpns.learning.support`). The planner counts a failed

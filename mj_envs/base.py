@@ -20,6 +20,7 @@ import numpy as np
 
 from bpns.env.environment import Capabilities
 from bpns.env.perturbations import NOMINAL, Perturbation
+from bpns.errors import BpnsError
 from bpns.structs import GroundAtom, Object, Predicate, SimState, State, Task, Type
 from ik import ControllerConfig
 from mj_envs.perturbation import noise
@@ -27,7 +28,7 @@ from mj_envs.render import render_states
 from mj_envs.world import POSE_SLICE, World
 
 
-class InvalidActionError(ValueError):
+class InvalidActionError(BpnsError, ValueError):
     """An action of the wrong shape or with non-finite entries."""
 
 

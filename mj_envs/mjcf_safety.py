@@ -13,13 +13,15 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from collections.abc import Collection
 
+from bpns.errors import BpnsError
+
 MAX_MJCF_CHARS = 1 << 24
 # compiler directories and every attribute that names a file (mesh, hfield, skin,
 # texture and its cube faces fileright/fileleft/..., model, include)
 _DIR_ATTRIBUTES = frozenset({"assetdir", "meshdir", "texturedir"})
 
 
-class UnsafeMjcfError(ValueError):
+class UnsafeMjcfError(BpnsError, ValueError):
     """MJCF text that includes or references files outside what the domain ships."""
 
 

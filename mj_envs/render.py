@@ -13,6 +13,7 @@ from collections.abc import Callable, Iterator, Sequence
 import mujoco
 import numpy as np
 
+from bpns.errors import BpnsError
 from bpns.execution.video import draw_caption
 from bpns.structs import State
 from mj_envs.gl import OSMESA_HINT, osmesa_available
@@ -20,7 +21,7 @@ from mj_envs.robots.panda_looks import RenderModel, dressed_model
 from mj_envs.world import STATE_SPEC, World
 
 
-class RenderingUnavailable(RuntimeError):
+class RenderingUnavailable(BpnsError, RuntimeError):
     """No OpenGL backend could be started; the message says how to fix it."""
 
 

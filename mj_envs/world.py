@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from bpns.env.perturbations import NOMINAL, Perturbation
+from bpns.errors import BpnsError
 from ik import ControllerConfig, EndEffectorController
 from mj_envs.mjcf_safety import check_mjcf
 from mj_envs.perturbation import apply_to_model
@@ -29,7 +30,7 @@ POSE_SLICE = slice(0, 7)
 DOMAIN_USERDATA_START = 7
 
 
-class MjcfError(ValueError):
+class MjcfError(BpnsError, ValueError):
     """The MJCF text of a task could not be compiled."""
 
 

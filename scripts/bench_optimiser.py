@@ -6,7 +6,7 @@
 Each measurement is a fresh process (so torch.optim's first-use start-up, which imports
 torch._dynamo, is paid where a real ``bpns learn`` pays it) that trains one MLP
 regressor (policy-sized: 2x32, batch 512) and then one GNN (the baselines' size:
-latent 16, 3 message-passing steps, batch 128), either with ``bpns.learning.nets.Adam``
+latent 16, 3 message-passing steps, batch 128), either with ``bpns.nets.layers.Adam``
 or with torch.optim.Adam put in its place. ``import torch`` happens before the clock
 starts in both (``--gnn-first`` swaps the order, so that the start-up lands in the GNN's
 time). The two alternate, ``--repeat`` times each; the median seconds of each
@@ -27,7 +27,7 @@ import numpy as np
 
 
 class TorchAdam:
-    """torch.optim.Adam behind the interface of ``bpns.learning.nets.Adam``."""
+    """torch.optim.Adam behind the interface of ``bpns.nets.layers.Adam``."""
 
     def __init__(self, params, lr: float) -> None:
         import torch
@@ -42,7 +42,7 @@ class TorchAdam:
 
 
 def _graphs(n: int, seed: int):
-    from bpns.learning.graphs import GraphVocabulary, encode_graph
+    from bpns.baselines.graphs import GraphVocabulary, encode_graph
     from bpns.structs import Object, State, Type
 
     block, robot = Type("block", ("x", "y", "z")), Type("robot", ("x", "y", "z", "fingers"))

@@ -56,7 +56,7 @@ def main() -> int:
     args = parser.parse_args()
 
     from bpns.evaluation.evaluate import EvalSpec, evaluate, markdown_table
-    from bpns.learning.learned import load_learned
+    from bpns.learning.artifacts.learned import load_learned
     from bpns.planning.config import planning_config_for
 
     with tempfile.TemporaryDirectory() as tmp:

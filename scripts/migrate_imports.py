@@ -40,8 +40,24 @@ MOVED = {
     "evaluation": "evaluation.evaluate",
     "rollout_files": "evaluation.rollout_files",
     "reporting": "evaluation.reporting",
-    "learned": "learning.learned",
-    "pddl": "learning.pddl",
+    "learned": "learning.artifacts.learned",
+    "pddl": "learning.artifacts.pddl",
+}
+# the second regrouping (one wing per concern): module paths inside packages -> new ones
+REGROUPED = {
+    "bpns.learning.nets": "bpns.nets.layers",
+    "bpns.learning.mlp": "bpns.nets.mlp",
+    "bpns.learning.linear": "bpns.nets.linear",
+    "bpns.learning.gnn_meta": "bpns.baselines.gnn_meta",
+    "bpns.learning.gnn_bc": "bpns.baselines.gnn_bc",
+    "bpns.learning.gnn_artifacts": "bpns.baselines.files",
+    "bpns.learning.gnn": "bpns.baselines.gnn",
+    "bpns.learning.graphs": "bpns.baselines.graphs",
+    "bpns.learning.baselines": "bpns.baselines.learn",
+    "bpns.approaches.baselines": "bpns.baselines.approaches",
+    "bpns.learning.artifact_checks": "bpns.learning.artifacts.checks",
+    "bpns.learning.learned": "bpns.learning.artifacts.learned",
+    "bpns.learning.pddl": "bpns.learning.artifacts.pddl",
 }
 SUFFIXES = (".py", ".md", ".toml")
 
@@ -68,19 +84,51 @@ def _from_bpns(m: re.Match[str]) -> str:
     indent, name, alias = m.group(1), m.group(2), m.group(3) or ""
     if name not in MOVED:
         return m.group(0)
-    package, module = MOVED[name].split(".")
+    package, _, module = MOVED[name].rpartition(".")
     if module != name and not alias:
         alias = f" as {name}"  # the name the code below uses
     return f"{indent}from bpns.{package} import {module}{alias}"
 
 
+_REGROUPED = re.compile(
+    r"\b(" + "|".join(re.escape(m) for m in sorted(REGROUPED, key=len, reverse=True)) + r")(?!\w)"
+)
+_REGROUPED_PATH = re.compile(
+    r"\b("
+    + "|".join(re.escape(m.replace(".", "/")) for m in sorted(REGROUPED, key=len, reverse=True))
+    + r")\.py\b"
+)
+_FROM_PACKAGE = re.compile(r"^(\s*)from (bpns\.\w+) import (\w+)( as \w+)?$", re.M)
+
+
+def _from_package(m: re.Match[str]) -> str:
+    indent, package, name, alias = m.group(1), m.group(2), m.group(3), m.group(4) or ""
+    new = REGROUPED.get(f"{package}.{name}")
+    if new is None:
+        return m.group(0)
+    new_package, _, module = new.rpartition(".")
+    if module != name and not alias:
+        alias = f" as {name}"
+    return f"{indent}from {new_package} import {module}{alias}"
+
+
+def _regrouped(text: str) -> str:
+    text = _FROM_PACKAGE.sub(_from_package, text)
+    text = _REGROUPED.sub(lambda m: REGROUPED[m.group(1)], text)
+    return _REGROUPED_PATH.sub(
+        lambda m: REGROUPED[m.group(1).replace("/", ".")].replace(".", "/") + ".py", text
+    )
+
+
 def migrate(text: str) -> str:
     """``text`` with every old bpns module path replaced by its new one."""
+    text = _regrouped(text)
     text = _DOTTED.sub(lambda m: "bpns." + MOVED[m.group(1)], text)
     text = _OLD_PACKAGE_NAME.sub(lambda m: "bpns." + MOVED[m.group(1)], text)
     text = _IMPORT_STATEMENT.sub(lambda m: m.group(1) + "bpns." + MOVED[m.group(2)], text)
     text = _PATH.sub(lambda m: "bpns/" + MOVED[m.group(1)].replace(".", "/") + ".py", text)
-    return _FROM_BPNS.sub(_from_bpns, text)
+    text = _FROM_BPNS.sub(_from_bpns, text)
+    return _regrouped(text)
 
 
 def _files(path: Path) -> list[Path]:

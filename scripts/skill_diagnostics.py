@@ -27,11 +27,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bpns.baselines.gnn_meta import label_segment
 from bpns.data.datasets import iter_demonstrations
 from bpns.execution.executor import Executed, RolloutConfig, SkillExecutor, completion_test
+from bpns.learning.artifacts.learned import load_learned
 from bpns.learning.config import learning_config_for
-from bpns.learning.gnn_meta import label_segment
-from bpns.learning.learned import load_learned
 from bpns.learning.segmentation import segment_demonstration
 from bpns.planning.config import planning_config_for
 

@@ -80,3 +80,24 @@ def test_files_are_rewritten_in_place_and_a_second_run_changes_nothing(
     assert capsys.readouterr().out == ""
     assert migrate_imports.main([str(tmp_path / "missing")]) == 2
     assert "no such file or directory" in capsys.readouterr().err
+
+
+REGROUPED_OLD = """from bpns.learning.mlp import MLPParams
+from bpns.learning import gnn_artifacts
+from bpns.approaches.baselines import GNN_BC
+import bpns.learning.pddl
+see bpns/learning/baselines.py
+"""
+REGROUPED_NEW = """from bpns.nets.mlp import MLPParams
+from bpns.baselines import files as gnn_artifacts
+from bpns.baselines.approaches import GNN_BC
+import bpns.learning.artifacts.pddl
+see bpns/baselines/learn.py
+"""
+
+
+def test_paths_from_the_second_regrouping_are_rewritten(migrate_imports):
+    assert migrate_imports.migrate(REGROUPED_OLD) == REGROUPED_NEW
+    assert migrate_imports.migrate(REGROUPED_NEW) == REGROUPED_NEW
+    for new in migrate_imports.REGROUPED.values():
+        importlib.import_module(new)

@@ -25,13 +25,14 @@ from pathlib import Path
 import numpy as np
 
 from bpns.env.environment import Environment
+from bpns.errors import BpnsError
 from bpns.execution.failures import FailureReason
 from bpns.execution.rollouts import Rollout
 from bpns.planning.config import PlanningConfig
 from bpns.structs import Task
 
 
-class NoOracleSkillsError(ValueError):
+class NoOracleSkillsError(BpnsError, ValueError):
     """The environment declares no hand-written skills."""
 
 
@@ -109,11 +110,11 @@ class ApproachEntry:
     skills: SkillSource
     build: Builder
     adjust: Callable[[PlanningConfig], PlanningConfig] = _same
-    # learned by `bpns learn --baselines` beside the skills (bpns.learning.baselines)
+    # learned by `bpns learn --baselines` beside the skills (bpns.baselines.learn)
     needs_baselines: bool = False
     # the learning stages whose time is this approach's learning time: names from the
     # skills pipeline (bpns.learning.pipeline.STAGES) and the baselines
-    # (bpns.learning.baselines); None: the whole skills pipeline
+    # (bpns.baselines.learn); None: the whole skills pipeline
     learned_stages: tuple[str, ...] | None = None
 
     def planning_config(self, base: PlanningConfig) -> PlanningConfig:

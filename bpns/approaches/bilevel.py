@@ -20,7 +20,7 @@ from bpns.approaches.base import (
 )
 from bpns.env.environment import Environment
 from bpns.execution.rollouts import REACHED, Rollout, rollout_of
-from bpns.learning.artifacts import load_skills
+from bpns.learning.artifacts.skills_dir import load_skills
 from bpns.learning.given import given_skills_of
 from bpns.planning.bilevel import PlanningStats, PlanResult, plan
 from bpns.planning.config import PlanningConfig

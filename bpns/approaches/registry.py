@@ -13,11 +13,12 @@ from importlib.metadata import entry_points
 
 from bpns.approaches.base import ApproachEntry
 from bpns.env.registry import PluginError, load_plugin
+from bpns.errors import BpnsError
 
 GROUP = "bpns.approaches"
 
 
-class UnknownApproachError(KeyError):
+class UnknownApproachError(BpnsError, KeyError):
     def __str__(self) -> str:
         return str(self.args[0])
 

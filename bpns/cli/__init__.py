@@ -20,7 +20,7 @@ from types import ModuleType
 from bpns.atomic import storage_problem
 from bpns.cli import check_env, demos, experiment, learn, render, replay, run, skills
 from bpns.cli import eval as eval_
-from bpns.cli.common import UserError
+from bpns.errors import BpnsError
 
 COMMANDS: dict[str, ModuleType] = {
     "demos": demos,
@@ -52,7 +52,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     with _numeric_warnings_held() as held:
         try:
             code = int(COMMANDS[args.command].run(args) or 0)
-        except UserError as err:
+        except BpnsError as err:  # every error the library reports, one line
             return _error(str(err))
         except BrokenPipeError:  # e.g. `bpns skills show DIR | head` stopped reading
             return _reader_gone()

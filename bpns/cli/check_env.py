@@ -1,7 +1,7 @@
 """``bpns check-env NAME``: check an environment's contract, one line per violation.
 
 Exit status 0 when the environment keeps the contract, 1 on violations, 2 on bad input
-(an unknown environment name). The checks themselves are :mod:`bpns.contract`.
+(an unknown environment name). The checks themselves are :mod:`bpns.workflow.contract`.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import argparse
 import importlib
 
 from bpns.cli.common import UserError, env_by_name, nonnegative, positive
-from bpns.contract import ContractConfig, run_checks
+from bpns.workflow.contract import ContractConfig, run_checks
 
 HELP = "check an environment's contract, one line per violation"
 

@@ -1,5 +1,5 @@
-"""Helpers shared by the ``bpns`` sub-commands: user errors, argument types, progress,
-loading inputs as user errors, and the output of an evaluation (``eval`` and ``run``)."""
+"""Helpers shared by the ``bpns`` sub-commands: user errors, argument types, progress
+bars and loading inputs named on the command line."""
 
 from __future__ import annotations
 
@@ -9,8 +9,10 @@ import os
 import sys
 from pathlib import Path
 
+from bpns.errors import BpnsError
 
-class UserError(Exception):
+
+class UserError(BpnsError):
     """Bad input from the user: reported as one line, no traceback."""
 
 
@@ -142,8 +144,8 @@ def stage_reporter():
 def learned_in(directory: Path, env_name: str | None = None):
     """(environment, LearnedSkills) of a skills directory, errors as UserError."""
     from bpns.env.registry import PluginError, UnknownEnvironmentError
-    from bpns.learning.artifacts import ArtifactError
-    from bpns.learning.learned import load_learned
+    from bpns.learning.artifacts.learned import load_learned
+    from bpns.learning.artifacts.skills_dir import ArtifactError
 
     try:
         return load_learned(directory, env_name)
@@ -156,109 +158,6 @@ def print_lines(record) -> None:
         print(line, flush=True)
 
 
-def report_evaluation(
-    env,
-    reports,
-    out: Path | None,
-    video: Path | None,
-    seed: int,
-    train: bool,
-    task: int | None = None,
-    camera: str | None = None,
-):
-    """Print the table, write the results files to ``out`` and render a solved task to
-    ``video`` (each when given): the end of ``bpns eval`` and of ``bpns run``."""
-    from bpns.evaluation.evaluate import markdown_table
-    from bpns.evaluation.reporting import render_longest_solved, write_results
-    from bpns.execution.video import VideoError
-
-    table = markdown_table(reports)
-    print(table, end="")
-    if out is not None:
-        write_results(out, reports, table, env)
-        print(f"wrote {out / 'results.json'}, {out / 'results.md'} and rollouts_<approach>.h5")
-    if video is not None:
-        # the first approach named that solved anything (e.g. the oracle, when skills
-        # learned from a handful of demos solve nothing)
-        solving = next((r for r in reports if r.num_solved), reports[0])
-        if task is not None:  # the named task, solved or not, of the first approach
-            solving = reports[0]
-        try:
-            rendered = render_longest_solved(env, solving, video, seed, train, task, camera)
-        except (VideoError, ValueError) as err:
-            raise UserError(str(err)) from None
-        if rendered is None:
-            print(f"no {solving.label} task was solved: no video", file=sys.stderr)
-        else:
-            print_lines(rendered)
-
-
-def evaluate_approaches(
-    env,
-    names,
-    *,
-    skills_dir: Path | None,
-    learned,
-    base_planning,
-    num_tasks: int,
-    task_seed: int,
-    planner_seed: int,
-    train: bool,
-    validate: bool,
-    workers: int,
-    perturbation=None,
-):
-    """Evaluate each named approach in turn, printing its summary line as it finishes;
-    the reports in the order named (the middle of ``bpns eval`` and of ``bpns run``)."""
-    from bpns.approaches import NoOracleSkillsError, SkillSource, get_approach
-    from bpns.env.perturbations import NOMINAL
-    from bpns.evaluation.evaluate import EvalSpec, evaluate
-    from bpns.evaluation.reporting import solved_line
-    from bpns.learning.artifacts import ArtifactError
-    from bpns.learning.baselines import saved_baseline_seconds
-
-    stats = learned.stats if learned is not None else None
-    for name in names:  # every approach can be built (its files load) before any work
-        entry = get_approach(name)
-        try:
-            entry.make(
-                env,
-                entry.planning_config(base_planning),
-                skills_dir if entry.skills is SkillSource.LEARNED else None,
-            )
-        except (NoOracleSkillsError, ArtifactError, ValueError) as err:
-            raise UserError(f"approach {name}: {err}") from None
-    reports = []
-    for name in names:
-        approach = get_approach(name)
-        learned_approach = approach.skills is SkillSource.LEARNED
-        spec = EvalSpec(
-            env_name=env.name,
-            approach=approach.name,
-            planning=approach.planning_config(base_planning),
-            skills_dir=str(skills_dir) if learned_approach else None,
-            task_seed=task_seed,
-            planner_seed=planner_seed,
-            train_tasks=train,
-            validate=validate,
-            perturbation=perturbation or NOMINAL,
-        )
-        learning_seconds = None
-        if learned_approach and stats is not None and skills_dir is not None:
-            learning_seconds = approach.learning_seconds(
-                dict(stats.stage_seconds), saved_baseline_seconds(skills_dir)
-            )
-        try:
-            report = evaluate(
-                spec,
-                num_tasks,
-                workers,
-                num_demos=stats.num_demos if learned_approach and stats else None,
-                learning_seconds=learning_seconds,
-                progress=lambda it, n, label=approach.label: progress(it, n, f"eval {label}"),
-            )
-        except NoOracleSkillsError as err:
-            raise UserError(str(err)) from None
-        reports.append(report)
-        print(solved_line(report), flush=True)
-    return reports
+def task_progress(outcomes, total: int, label: str):
+    """A progress bar over an evaluation's task outcomes (``bpns.workflow.evaluate``)."""
+    return progress(outcomes, total, label)

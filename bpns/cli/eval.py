@@ -4,24 +4,28 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 
 from bpns.cli.common import (
     UserError,
     approach_by_name,
     default_workers,
     env_by_name,
-    evaluate_approaches,
     learned_in,
     nonnegative,
     path_arg,
     positive,
     positive_float,
     positive_or_off,
-    report_evaluation,
+    print_lines,
+    task_progress,
     tolerance_or_off,
 )
 from bpns.cli.paths import capped_to_cores, check_eval_outputs, writing
 from bpns.env.perturbations import PerturbationError, parse_perturbation
+from bpns.evaluation.reporting import solved_line
+from bpns.workflow.evaluate import EvalRequest, evaluate_approaches
+from bpns.workflow.report import report_evaluation
 
 HELP = "solve held-out tasks by bilevel planning; results JSON + markdown table"
 
@@ -167,12 +171,7 @@ def run(args: argparse.Namespace) -> int:
             base = dataclasses.replace(base, set_aside_after=None)
     except (TypeError, ValueError) as err:
         raise UserError(f"bad planning settings: {err}") from None
-    reports = evaluate_approaches(
-        env,
-        names,
-        skills_dir=args.skills,
-        learned=learned,
-        base_planning=base,
+    request = EvalRequest(
         num_tasks=args.tasks,
         task_seed=args.seed,
         planner_seed=args.planner_seed,
@@ -181,10 +180,23 @@ def run(args: argparse.Namespace) -> int:
         workers=workers,
         perturbation=perturbation,
     )
+    reports = evaluate_approaches(
+        env,
+        names,
+        request,
+        base,
+        skills_dir=args.skills,
+        learned=learned,
+        progress=task_progress,
+        finished=lambda report: print(solved_line(report), flush=True),
+    )
     with writing(args.out or args.video):
-        report_evaluation(
+        reported = report_evaluation(
             env, reports, args.out, args.video, args.seed, args.train, args.task, args.camera
         )
+    print_lines(reported)
+    if reported.no_video_of is not None:
+        print(f"no {reported.no_video_of} task was solved: no video", file=sys.stderr)
     if args.explain:
         from bpns.evaluation.reporting import explain_lines
 

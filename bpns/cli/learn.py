@@ -21,7 +21,7 @@ from bpns.cli.common import (
 from bpns.cli.paths import capped_to_cores, check_skills_dir, usable_cores, writing
 
 if TYPE_CHECKING:
-    from bpns.learning.baselines import BaselinesConfig
+    from bpns.baselines.learn import BaselinesConfig
 
 HELP = "learn neuro-symbolic skills from demonstrations"
 
@@ -192,7 +192,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _baselines_config(args: argparse.Namespace) -> BaselinesConfig:
-    from bpns.learning.baselines import BaselinesConfig
+    from bpns.baselines.learn import BaselinesConfig
 
     base = (
         BaselinesConfig()

@@ -8,6 +8,7 @@ before it produced."""
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,15 +20,14 @@ from bpns.cli.common import (
     approach_by_name,
     default_workers,
     env_by_name,
-    evaluate_approaches,
     nonnegative,
     path_arg,
     positive,
     positive_float,
     print_lines,
     progress,
-    report_evaluation,
     stage_reporter,
+    task_progress,
 )
 from bpns.cli.paths import (
     capped_to_cores,
@@ -41,6 +41,7 @@ from bpns.data.datasets import DatasetError
 from bpns.data.demos import check_replay
 from bpns.env.environment import Environment
 from bpns.evaluation.evaluate import EvalReport
+from bpns.evaluation.reporting import solved_line
 from bpns.learning import LearnedSkills, LearningConfig, describe
 from bpns.learning.config import learning_config_for
 from bpns.planning.config import PlanningConfig, planning_config_for
@@ -50,9 +51,11 @@ from bpns.workflow import (
     collect_demos,
     learn_to_directory,
 )
+from bpns.workflow.evaluate import EvalRequest, evaluate_approaches
+from bpns.workflow.report import report_evaluation
 
 if TYPE_CHECKING:
-    from bpns.learning.baselines import BaselinesConfig
+    from bpns.baselines.learn import BaselinesConfig
 
 HELP = "the whole pipeline: demos -> learn -> eval -> table -> video"
 REPLAY_CHECKED = 5  # demonstrations re-simulated to check the simulator is exact
@@ -154,7 +157,7 @@ def parse_run(args: argparse.Namespace) -> RunConfig:
     learning = learning_config_for(env, seed=args.seed)
     baselines = None
     if stages:
-        from bpns.learning.baselines import BaselinesConfig  # loads the GNN code: only here
+        from bpns.baselines.learn import BaselinesConfig  # loads the GNN code: only here
 
         steps = args.baseline_steps
         base = BaselinesConfig() if steps is None else BaselinesConfig.with_max_steps(steps)
@@ -246,20 +249,20 @@ def evaluate(config: RunConfig, *, learned: LearnedSkills) -> list[EvalReport]:
     return evaluate_approaches(
         config.env,
         config.names,
+        EvalRequest(num_tasks=config.num_tasks, task_seed=config.seed, workers=config.workers),
+        config.planning,
         skills_dir=config.skills_dir,
         learned=learned,
-        base_planning=config.planning,
-        num_tasks=config.num_tasks,
-        task_seed=config.seed,
-        planner_seed=0,
-        train=False,
-        validate=True,
-        workers=config.workers,
+        progress=task_progress,
+        finished=lambda report: print(solved_line(report), flush=True),
     )
 
 
 def report(config: RunConfig, *, reports: list[EvalReport]) -> None:
     """The table, the results files and a video of a solved task."""
-    report_evaluation(
+    reported = report_evaluation(
         config.env, reports, config.out / "eval", config.video, config.seed, train=False
     )
+    print_lines(reported)
+    if reported.no_video_of is not None:
+        print(f"no {reported.no_video_of} task was solved: no video", file=sys.stderr)

@@ -19,7 +19,7 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bpns.learning import describe
-    from bpns.learning.pddl import domain_pddl
+    from bpns.learning.artifacts.pddl import domain_pddl
 
     env, learned = learned_in(args.directory, args.env)
     if args.pddl:

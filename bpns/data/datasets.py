@@ -33,12 +33,13 @@ import numpy as np
 from bpns.atomic import atomic_path
 from bpns.data import dataset_checks as checks
 from bpns.env.environment import Environment
+from bpns.errors import BpnsError
 from bpns.structs import Demonstration, GroundAtom, Object, SimState, State, Task
 
 FORMAT = "bpns-demos-1"
 
 
-class DatasetError(ValueError):
+class DatasetError(BpnsError, ValueError):
     """A demonstration file is missing, corrupt, truncated or not of this format."""
 
 

@@ -28,8 +28,10 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 
+from bpns.errors import BpnsError
 
-class PerturbationError(ValueError):
+
+class PerturbationError(BpnsError, ValueError):
     """An unknown perturbation name or a value out of its range."""
 
 

@@ -13,12 +13,13 @@ from importlib.metadata import EntryPoint, entry_points
 from typing import TypeVar
 
 from bpns.env.environment import Environment, declaration_problem
+from bpns.errors import BpnsError
 
 GROUP = "bpns.environments"
 T = TypeVar("T")
 
 
-class UnknownEnvironmentError(KeyError):
+class UnknownEnvironmentError(BpnsError, KeyError):
     def __str__(self) -> str:
         return str(self.args[0])
 
@@ -29,7 +30,7 @@ class EnvironmentDeclarationError(UnknownEnvironmentError):
     unknown name as one line reports this alike."""
 
 
-class PluginError(RuntimeError):
+class PluginError(BpnsError, RuntimeError):
     """An installed entry point (an environment or approach plugin) that fails to load or
     to build: its import raised, it names nothing, or constructing it raised."""
 

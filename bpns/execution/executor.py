@@ -24,6 +24,7 @@ import numpy as np
 
 from bpns.env.abstraction import object_tuples
 from bpns.env.environment import Environment, observation_of
+from bpns.errors import BpnsError
 from bpns.execution.failures import FailureReason
 from bpns.structs import GroundAtom, GroundOperator, Object, Skill, State, Task
 
@@ -76,7 +77,7 @@ def expected_after(op: GroundOperator, atoms: frozenset[GroundAtom]) -> frozense
     return op.apply(atoms)
 
 
-class ExecutionTimeout(Exception):
+class ExecutionTimeout(BpnsError):
     """The deadline passed during an execution."""
 
 

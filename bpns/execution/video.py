@@ -14,11 +14,12 @@ from PIL import Image, ImageDraw, ImageFont
 
 from bpns.atomic import atomic_path
 from bpns.env.environment import Environment
+from bpns.errors import BpnsError
 from bpns.execution.rollouts import PlanStep, outcome_caption, step_captions
 from bpns.structs import State
 
 
-class VideoError(RuntimeError):
+class VideoError(BpnsError, RuntimeError):
     """Rendering or encoding failed (no OpenGL backend, no ffmpeg, a bad camera, a full
     disk ...)."""
 

@@ -22,11 +22,12 @@ import tempfile
 from collections.abc import Iterator
 from typing import Any, Protocol
 
+from bpns.errors import BpnsError
 from bpns.experiments.work import CellJob, CellOutcome, run_cell_safely
 from bpns.pools import die_with
 
 
-class BackendError(RuntimeError):
+class BackendError(BpnsError, RuntimeError):
     """A backend that cannot start (Ray missing, cluster unreachable)."""
 
 

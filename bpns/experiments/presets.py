@@ -12,10 +12,11 @@ from dataclasses import dataclass
 
 from bpns.env.perturbations import Perturbation, PerturbationError
 from bpns.env.registry import environment_names
+from bpns.errors import BpnsError
 from bpns.experiments.approach_info import approach_names
 
 
-class SweepConfigError(ValueError):
+class SweepConfigError(BpnsError, ValueError):
     """A sweep whose settings make no sense (empty, negative, repeated)."""
 
 

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from bpns.atomic import atomic_path
+from bpns.errors import BpnsError
 from bpns.experiments.cells import DEMOS, EVAL, SKILLS, Cell
 
 FORMAT = "bpns-experiment-cell-1"
@@ -45,7 +46,7 @@ RESULT_KEYS = {
 }
 
 
-class CellStoreError(ValueError):
+class CellStoreError(BpnsError, ValueError):
     """A stored cell that cannot be reused: unreadable, or made with other settings."""
 
 

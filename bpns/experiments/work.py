@@ -15,9 +15,9 @@ from pathlib import Path
 from typing import Any
 
 from bpns.atomic import storage_problem
+from bpns.baselines.learn import BaselinesConfig
 from bpns.env.registry import make_environment
 from bpns.experiments.cells import DEMOS, EVAL, SKILLS, SWEEP_GNN_SEED, Cell
-from bpns.learning.baselines import BaselinesConfig
 from bpns.workflow import collect_demos, learn_to_directory
 
 

@@ -6,7 +6,7 @@ Stages, each usable alone: :func:`segment_demonstrations` -> :func:`partition_se
 :func:`save_skills` / :func:`load_skills` persist the result.
 """
 
-from bpns.learning.artifacts import ArtifactError, describe, load_skills, save_skills
+from bpns.learning.artifacts.skills_dir import ArtifactError, describe, load_skills, save_skills
 from bpns.learning.config import LearningConfig, MLPConfig
 from bpns.learning.operators import SkillDataset, applicable_bindings, learn_operators
 from bpns.learning.partition import SegmentGroup, partition_segments

@@ -13,42 +13,10 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+from bpns.nets.mlp import MLPConfig
+
 if TYPE_CHECKING:
     from bpns.env.environment import Environment
-
-
-@dataclass(frozen=True)
-class MLPConfig:
-    """Architecture and optimisation of one fully-connected network."""
-
-    hidden_sizes: tuple[int, ...] = (32, 32)
-    num_steps: int = 4000
-    batch_size: int = 256
-    learning_rate: float = 1e-3
-    # Standardisation divides by max(std, std_floor), in the features' own units (m, rad):
-    # variation below about a centimetre is noise to these networks, and must not be
-    # amplified into huge standardised inputs at inference.
-    std_floor: float = 1e-2
-    # Inference clips inputs into the training range widened by this fraction of its
-    # span on each side (mlp.input_box); None: no clipping, as in the paper.
-    input_margin: float | None = None
-
-    def __post_init__(self) -> None:
-        if (
-            self.num_steps < 0
-            or self.batch_size < 1
-            or self.learning_rate <= 0.0
-            or not self.std_floor > 0.0
-        ):
-            raise ValueError(f"invalid MLPConfig {self}")
-        if any(h < 1 for h in self.hidden_sizes):
-            raise ValueError(f"hidden sizes must be positive, got {self.hidden_sizes}")
-        if self.input_margin is not None and not 0.0 <= self.input_margin < math.inf:
-            raise ValueError(
-                f"input_margin must be finite and >= 0, or None; got {self.input_margin}"
-            )
-        if not (math.isfinite(self.learning_rate) and math.isfinite(self.std_floor)):
-            raise ValueError(f"learning_rate and std_floor must be finite, got {self}")
 
 
 @dataclass(frozen=True)

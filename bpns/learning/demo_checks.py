@@ -11,6 +11,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from bpns.errors import BpnsError
 from bpns.structs import Demonstration
 
 #: the largest magnitude accepted in an action or feature: far beyond any physical
@@ -19,7 +20,7 @@ from bpns.structs import Demonstration
 MAX_MAGNITUDE = 1e9
 
 
-class DemonstrationError(ValueError):
+class DemonstrationError(BpnsError, ValueError):
     """Demonstrations that cannot be learned from (non-finite actions or features)."""
 
 

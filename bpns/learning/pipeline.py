@@ -21,7 +21,6 @@ import numpy as np
 from bpns.learning.config import LearningConfig
 from bpns.learning.demo_checks import check_demonstrations
 from bpns.learning.given import BoundPolicy, BoundSampler, GivenSkill, match_given
-from bpns.learning.mlp import train_classifier, train_gaussian
 from bpns.learning.operators import SkillDataset, learn_operators
 from bpns.learning.partition import SegmentGroup, partition_segments
 from bpns.learning.policies import ScopeDims, scope_trajectories, train_policy
@@ -33,6 +32,7 @@ from bpns.learning.samplers import (
 )
 from bpns.learning.segmentation import segment_demonstration
 from bpns.learning.sharing import shared_data
+from bpns.nets.mlp import train_classifier, train_gaussian
 from bpns.pools import make_pool
 from bpns.structs import Demonstration, Predicate, Segment, Skill, STRIPSOperator, Type
 

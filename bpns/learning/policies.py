@@ -22,9 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from bpns.learning.config import LearningConfig, MLPConfig
-from bpns.learning.linear import LinearBase
-from bpns.learning.mlp import MLPParams, Regressor, train_regressor
 from bpns.learning.operators import SkillDataset
+from bpns.nets.linear import LinearBase
+from bpns.nets.mlp import MLPParams, Regressor, train_regressor
 from bpns.structs import Object, State
 
 
@@ -141,7 +141,7 @@ def policy_training_data(
 
 class LearnedPolicy:
     """SubgoalPolicy backed by a numpy MLP (plus an affine ``base`` of its input, when
-    learned: :mod:`bpns.learning.linear`). Outputs are returned unclipped and unchecked
+    learned: :mod:`bpns.nets.linear`). Outputs are returned unclipped and unchecked
     (non-finite values included): action limits and validity are the planner's job."""
 
     def __init__(
@@ -212,7 +212,7 @@ def train_policy(
     linear_base: bool = False,
 ) -> LearnedPolicy:
     """``linear_base``: the network learns the residual of an affine map of its input,
-    where that map predicts held-out rows better than their mean (:mod:`bpns.learning.linear`)."""
+    where that map predicts held-out rows better than their mean (:mod:`bpns.nets.linear`)."""
     inputs, targets = policy_training_data(scopes, actions, dims, use_subgoals, near_scale)
     base = None
     if linear_base and inputs.shape[1] > 0:

@@ -15,7 +15,7 @@ Bindings under which the segment's effects are exactly k's ground effects are eq
 valid explanations of the segment and are never used as negatives.
 
 The generator's mean is a linear map of the start scope plus the network's output,
-which learns the residual (:class:`bpns.learning.linear.LinearBase`;
+which learns the residual (:class:`bpns.nets.linear.LinearBase`;
 ``LearningConfig.linear_sampler_base``).
 Many subgoals are affine in the start state (the hand goes to the button's x and y;
 the stick's tip to the button), and a ridge fit recovers such a map from a few dozen
@@ -32,16 +32,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from bpns.learning.config import LearningConfig, MLPConfig
-from bpns.learning.linear import LinearBase
-from bpns.learning.mlp import (
+from bpns.learning.operators import SkillDataset, applicable_bindings
+from bpns.learning.policies import ScopeDims, scope_trajectories
+from bpns.nets.linear import LinearBase
+from bpns.nets.mlp import (
     BinaryClassifier,
     GaussianRegressor,
     MLPParams,
     train_classifier,
     train_gaussian,
 )
-from bpns.learning.operators import SkillDataset, applicable_bindings
-from bpns.learning.policies import ScopeDims, scope_trajectories
 from bpns.structs import NoSubgoal, Object, Segment, State, STRIPSOperator
 
 

@@ -13,10 +13,11 @@ import time
 from collections.abc import Collection, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 
+from bpns.errors import BpnsError
 from bpns.structs import GroundAtom, GroundOperator, LiftedAtom, Object, STRIPSOperator, Variable
 
 
-class SearchTimeout(Exception):
+class SearchTimeout(BpnsError):
     """Raised by grounding and search when their wall-clock deadline has passed."""
 
 

@@ -14,12 +14,13 @@ from collections.abc import Callable
 
 import numpy as np
 
+from bpns.errors import BpnsError
 from bpns.structs import State
 
 Phase = Callable[[State], "np.ndarray | None"]
 
 
-class DemonstrationFailed(RuntimeError):
+class DemonstrationFailed(BpnsError, RuntimeError):
     """The scripted demonstrator could not carry on (reported, never silent)."""
 
 

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from bpns.errors import BpnsError
+
 CHECK_STEP = 0.02  # metres between collision checks along a segment
 
 
@@ -77,7 +79,7 @@ class PlannerConfig:
     shortcut_rounds: int = 60
 
 
-class NoPathFound(RuntimeError):
+class NoPathFound(BpnsError, RuntimeError):
     """The planner found no collision-free path within its iteration budget."""
 
 

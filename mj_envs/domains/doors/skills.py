@@ -23,8 +23,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.learning.given import GivenSkill
-from bpns.structs import LiftedAtom, Object, Skill, State, STRIPSOperator, Variable
+from bpns.structs import GivenSkill, LiftedAtom, Object, Skill, State, STRIPSOperator, Variable
 from mj_envs.domains.doors.motion import BasePlanner, NoPathFound, path_seed, scene_boxes
 from mj_envs.domains.doors.rules import (
     APPROACH_ALONG,

@@ -1,0 +1,72 @@
+"""What an evaluation leaves for the user: the table, the results files and a video of a
+task (the end of ``bpns eval`` and ``bpns run``). Returns a record whose ``lines()`` are
+what a command prints; writing nothing to the terminal itself."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from bpns.env.environment import Environment
+from bpns.errors import BpnsError
+from bpns.evaluation.evaluate import EvalReport, markdown_table
+from bpns.evaluation.reporting import SolvedVideo, render_longest_solved, write_results
+from bpns.execution.video import VideoError
+
+
+class TaskNotEvaluatedError(BpnsError, ValueError):
+    """A video of a task that was not among the evaluated ones was asked for."""
+
+
+@dataclass(frozen=True, eq=False)
+class EvaluationReported:
+    table: str
+    out: Path | None
+    video: SolvedVideo | None
+    no_video_of: str | None  # the approach whose video was asked for but solved nothing
+
+    def lines(self) -> list[str]:
+        out = self.table.rstrip("\n").splitlines()
+        if self.out is not None:
+            out.append(
+                f"wrote {self.out / 'results.json'}, {self.out / 'results.md'} "
+                "and rollouts_<approach>.h5"
+            )
+        if self.video is not None:
+            out.extend(self.video.lines())
+        return out
+
+
+def report_evaluation(
+    env: Environment,
+    reports: Sequence[EvalReport],
+    out: Path | None = None,
+    video: Path | None = None,
+    seed: int = 0,
+    train: bool = False,
+    task: int | None = None,
+    camera: str | None = None,
+) -> EvaluationReported:
+    """Write the results files to ``out`` and render a task to ``video`` (each when
+    given): ``task`` of the first approach, solved or failed, else the longest solved
+    plan of the first approach that solved anything. Raises ``VideoError`` when rendering
+    fails and :class:`TaskNotEvaluatedError` for a task not evaluated."""
+    table = markdown_table(reports)
+    if out is not None:
+        write_results(out, reports, table, env)
+    rendered = None
+    no_video_of = None
+    if video is not None:
+        solving = next((r for r in reports if r.num_solved), reports[0])
+        if task is not None:
+            solving = reports[0]
+        try:
+            rendered = render_longest_solved(env, solving, video, seed, train, task, camera)
+        except VideoError:
+            raise
+        except ValueError as err:
+            raise TaskNotEvaluatedError(str(err)) from None
+        if rendered is None:
+            no_video_of = solving.label
+    return EvaluationReported(table, out, rendered, no_video_of)

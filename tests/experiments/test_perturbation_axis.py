@@ -1,0 +1,84 @@
+"""A sweep with a perturbation axis: one eval cell per level, rows per level, and a
+success-vs-level figure per approach; sweeps without an axis keep their cells."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from bpns.cli import main
+from bpns.env.perturbations import Perturbation
+from bpns.experiments.aggregate import aggregate, markdown_table
+from bpns.experiments.cells import EVAL
+from bpns.experiments.plots import save_figure, success_vs_perturbation
+from bpns.experiments.presets import SweepConfigError
+from bpns.experiments.sweep import sweep_cells
+from tests.experiments.test_sweeps import TINY, _eval_record
+
+BASE = TINY  # the harness tests' sweep: cover, 3 demos, seed 0, bpns + oracle
+
+
+def test_each_eval_cell_runs_once_per_level_of_the_axis(cover_env):
+    axis = dataclasses.replace(BASE, perturb_axis=("friction_scale", (1.0, 0.5)))
+    plain = [c for c in sweep_cells(BASE, {"cover": cover_env}) if c.kind == EVAL]
+    cells = [c for c in sweep_cells(axis, {"cover": cover_env}) if c.kind == EVAL]
+    assert len(cells) == 2 * len(plain)
+    assert len({c.key for c in cells}) == len(cells)
+    assert {c.perturbation for c in cells} == {Perturbation(), Perturbation(friction_scale=0.5)}
+    assert any(c.key.endswith("-friction_scale0.5-seed0") for c in cells)
+    assert all(c.settings["perturb_axis"] == "friction_scale" for c in cells)
+    # without an axis, keys and settings are those of sweeps stored before the axis
+    assert all("perturbation" not in c.settings and "friction" not in c.key for c in plain)
+    assert "perturb_axis" not in BASE.to_json()
+
+
+def test_a_bad_axis_is_a_config_error_and_a_cli_error(capsys):
+    with pytest.raises(SweepConfigError, match="mass_scale"):
+        dataclasses.replace(BASE, perturb_axis=("mass_scale", (1.0, 0.0)))
+    assert main(["experiment", "--env", "cover", "--perturb-axis", "friction=1,2"]) == 2
+    assert "unknown perturbation 'friction'" in capsys.readouterr().err
+
+
+def _record(approach: str, demos: int | None, level: float, solved: int):
+    """An eval cell of 4 tasks at friction level ``level``, ``solved`` of them solved."""
+    record = _eval_record(0, approach, demos, [1.0] * solved + [None] * (4 - solved))
+    physics = dataclasses.asdict(Perturbation(friction_scale=level))
+    record["settings"].update(perturbation=physics, perturb_axis="friction_scale")
+    return record
+
+
+RECORDS = [
+    _record("oracle", None, 1.0, 4),
+    _record("oracle", None, 0.5, 2),
+    _record("bpns", 3, 0.5, 1),
+    _record("bpns", 3, 1.0, 3),
+]
+
+
+def test_rows_are_per_level_and_the_table_names_the_level():
+    rows = aggregate(RECORDS)
+    assert [(r.approach, r.level) for r in rows] == [
+        ("oracle", 0.5),
+        ("oracle", 1.0),
+        ("bpns", 0.5),
+        ("bpns", 1.0),
+    ]
+    table = markdown_table(rows)
+    assert "| Demos | friction_scale | Seeds |" in table
+    assert "| cover | Oracle | – | 0.5 | 1 | 50.0 ± 0.0 |" in table
+    assert rows[0].to_json()["perturbation"] == {"friction_scale": 0.5}
+
+
+def test_the_robustness_figure_draws_success_at_each_level_per_approach(tmp_path):
+    fig = success_vs_perturbation(aggregate(RECORDS))
+    (ax,) = fig.axes
+    got = {  # errorbar containers: (data line, caps, bars), labelled by approach
+        c.get_label().split(" (")[0]: sorted(zip(*c.lines[0].get_data(), strict=True))
+        for c in ax.containers
+    }
+    assert [round(y) for _, y in got["Oracle"]] == [50, 100]
+    assert [round(y) for _, y in got["BPNS"]] == [25, 75]
+    assert ax.get_xlabel() == "friction scale"
+    paths = save_figure(fig, tmp_path / "robust")
+    assert all(p.stat().st_size > 0 for p in paths)
