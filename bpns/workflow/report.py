@@ -10,7 +10,7 @@ from pathlib import Path
 
 from bpns.env.environment import Environment
 from bpns.errors import BpnsError
-from bpns.evaluation.evaluate import EvalReport, markdown_table
+from bpns.evaluation.evaluate import EvalReport, conditions_line, markdown_table
 from bpns.evaluation.reporting import SolvedVideo, render_longest_solved, write_results
 from bpns.execution.video import VideoError
 
@@ -52,7 +52,7 @@ def report_evaluation(
     given): ``task`` of the first approach, solved or failed, else the longest solved
     plan of the first approach that solved anything. Raises ``VideoError`` when rendering
     fails and :class:`TaskNotEvaluatedError` for a task not evaluated."""
-    table = markdown_table(reports)
+    table = conditions_line(reports) + "\n\n" + markdown_table(reports)
     if out is not None:
         write_results(out, reports, table, env)
     rendered = None
