@@ -9,9 +9,10 @@ through the operators from the last one back,
 
 ``N_i`` must hold before step i for steps i..n-1 to reach the goal (the STRIPS
 necessary atoms). After step i the world's abstract state must contain ``N_{i+1}``;
-while step i runs, the contact-related atoms of ``N_{i+1}`` that were already true,
-that step i does not delete and that the model's own rollout kept true throughout
-(so a transient touch the model also made does not alarm) must go on holding.
+while step i runs, the contact-related atoms of ``N_{i+1}`` and of step i's own
+preconditions that were already true, that step i does not delete and that the model's
+own rollout kept true throughout (so a transient touch the model also made does not
+alarm) must go on holding.
 
 Unlike the operators' predicted abstract states (which refinement of simulated plans
 matches by construction, so a monitor comparing with them never fires), the necessary
@@ -43,9 +44,10 @@ def kept_atoms(
     model_states: Sequence[State] = (),
 ) -> tuple[GroundAtom, ...]:
     """The atoms a running step must not lose (see the module docstring), sorted."""
+    needed = needed_after | op.preconditions  # the running step needs its own too
     candidates = [
         a
-        for a in (start & needed_after) - op.delete_effects - op.add_effects
+        for a in (start & needed) - op.delete_effects - op.add_effects
         if a.predicate in contact_predicates
     ]
     held = [a for a in candidates if all(a.holds(s) for s in model_states)]

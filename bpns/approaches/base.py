@@ -116,7 +116,8 @@ def open_loop(
     the plan itself and is not simulated again."""
     init = adopt_state(model, task.init)
     solution = approach.solve(Task(init, task.goal, task.horizon), rng, timeout)
-    if not solution.success or init is task.init:
+    same_physics = model is world or (task.init.sim is not None and init is task.init)
+    if not solution.success or same_physics:
         return solution
     state = task.init
     for action in solution.actions:

@@ -14,6 +14,7 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
+from bpns.acting.config import MODES
 from bpns.cli.common import UserError, path_arg, whole_at_least
 from bpns.cli.paths import check_free_space, check_output_dir
 from bpns.experiments.approach_info import approach_names
@@ -73,6 +74,26 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--perturb`), e.g. friction_scale=1,0.7,0.5; the report draws success vs level",
     )
     parser.add_argument(
+        "--worlds",
+        nargs="+",
+        metavar="WORLD",
+        help="evaluate every eval cell in each world: nominal, a preset (moderate, hard) or "
+        "a quoted 'NAME=SPREAD ...' (as `bpns eval --perturb`); the report pairs each with "
+        "the nominal world on the same tasks, with Wilson intervals",
+    )
+    parser.add_argument(
+        "--execution",
+        nargs="+",
+        choices=MODES,
+        help="closed-loop and/or open-loop (default with --worlds: closed-loop)",
+    )
+    parser.add_argument(
+        "--model",
+        default="nominal",
+        help="what planning simulates with --worlds: nominal (default), world, or a quoted "
+        "'NAME=VALUE ...' belief (as `bpns eval --model`)",
+    )
+    parser.add_argument(
         "--workers",
         type=_count,
         default=1,
@@ -113,6 +134,9 @@ def sweep_config(args: argparse.Namespace) -> SweepConfig:
             eval_tasks=args.tasks,
             timeout=args.timeout,
             perturb_axis=axis,
+            worlds=args.worlds,
+            executions=args.execution,
+            model=args.model,
         )
     except SweepConfigError as err:
         raise UserError(str(err)) from None
@@ -168,6 +192,12 @@ def command_line(config: SweepConfig, out: Path, args: argparse.Namespace) -> st
     if config.perturb_axis is not None:
         name, levels = config.perturb_axis
         argv += ["--perturb-axis", f"{name}={','.join(format(v, 'g') for v in levels)}"]
+    if config.worlds:
+        argv += ["--worlds", *config.worlds]
+    if config.executions:
+        argv += ["--execution", *config.executions]
+    if config.model != "nominal":
+        argv += ["--model", config.model]
     argv += ["--workers", str(args.workers)]
     if args.backend != "pool":
         argv += ["--backend", args.backend]

@@ -223,9 +223,11 @@ def adopt_state(env: Environment, state: State) -> State:
     hands the planner. Through the protocol's ``state_from_flat`` in ``env``'s own scene
     of the task, which is handed ``state`` itself as ``like`` so that it can carry a flat
     state laid out by another physics (mj_envs: a latency queue of another length)."""
-    if state.sim is None:
-        raise AdoptionError("the state carries no simulator state to hand to the model")
+    if state.sim is None:  # an environment whose features are its whole state
+        return state
     world = env.load_world(env.save_world(state.sim.world))
+    if world is state.sim.world:  # the same physics: nothing to carry
+        return state
     try:
         return env.state_from_flat(world, state.sim.flat, state)
     except ValueError as err:

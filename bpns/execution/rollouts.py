@@ -130,9 +130,7 @@ def step_captions(steps: Sequence[PlanStep], num_states: int) -> list[str]:
     return out
 
 
-def event_captions(
-    captions: Sequence[str], events: Sequence[Event], hold: int = 40
-) -> list[str]:
+def event_captions(captions: Sequence[str], events: Sequence[Event], hold: int = 40) -> list[str]:
     """``captions`` with each monitor event's text added below, from the state where it
     happened for ``hold`` states (2 s at 20 Hz), so a video shows why it replanned."""
     out = list(captions)

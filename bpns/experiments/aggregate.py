@@ -15,6 +15,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from bpns.evaluation.intervals import wilson_interval
 from bpns.experiments import approach_info
 
 
@@ -56,6 +57,8 @@ class SeedResult:
     solved_seconds: tuple[float, ...]  # test time of every solved task
     # median over solved tasks of simulated steps per action of the final plan
     sim_steps_per_step: float | None = None
+    num_solved: int = 0
+    mean_replans: float = 0.0  # closed loop: divergences repaired per task
 
     @classmethod
     def from_record(cls, record: dict[str, Any]) -> SeedResult:
@@ -70,6 +73,8 @@ class SeedResult:
             learning_seconds=r.get("learning_seconds"),
             solved_seconds=tuple(t["seconds"] for t in r["tasks"] if t["solved"]),
             sim_steps_per_step=r.get("median_sim_steps_per_step", _median_sim_ratio(r["tasks"])),
+            num_solved=int(r.get("num_solved", sum(bool(t["solved"]) for t in r["tasks"]))),
+            mean_replans=float(r.get("mean_replans", 0.0)),
         )
 
     def fraction_solved_within(self, seconds: float) -> float:
@@ -95,6 +100,21 @@ class Row:
     seeds: tuple[SeedResult, ...]
     level: float | None = None  # the perturbation axis' value (None: no axis)
     axis: str | None = None  # the perturbation axis' name
+    world: str | None = None  # the swept world (None: not swept)
+    execution: str | None = None  # closed-loop / open-loop (None: not swept)
+
+    @property
+    def pooled(self) -> tuple[int, int]:
+        """(tasks solved, tasks) over every seed: the trials of a Wilson interval."""
+        return sum(s.num_solved for s in self.seeds), sum(s.num_tasks for s in self.seeds)
+
+    @property
+    def pooled_interval(self) -> tuple[float, float]:
+        return wilson_interval(*self.pooled)
+
+    @property
+    def replans(self) -> Stat:
+        return Stat.of(s.mean_replans for s in self.seeds)
 
     @property
     def label(self) -> str:
@@ -131,6 +151,11 @@ class Row:
             "label": self.label,
             "demos": self.demos,
             **({} if self.axis is None else {"perturbation": {self.axis: self.level}}),
+            **({} if self.world is None else {"world": self.world}),
+            **({} if self.execution is None else {"execution": self.execution}),
+            "pooled_solved": list(self.pooled),
+            "pooled_interval": list(self.pooled_interval),
+            "replans": self.replans.to_json(),
             "seeds": [s.seed for s in self.seeds],
             "eval_tasks": [s.num_tasks for s in self.seeds],
             "solved_percent": self.solved_percent.to_json(),
@@ -143,31 +168,44 @@ class Row:
 
 
 def aggregate(eval_records: Iterable[dict[str, Any]]) -> list[Row]:
-    """One row per (env, approach, demo count, perturbation level), in the order first
-    seen for env and approach, then by increasing demo count and level; seeds sorted."""
-    groups: dict[tuple[str, str, int | None, float | None], list[SeedResult]] = {}
+    """One row per (env, approach, demo count, perturbation level, world, execution), in
+    the order first seen for env, approach, world and execution, then by increasing demo
+    count and level; seeds sorted."""
+    groups: dict[tuple, list[SeedResult]] = {}
     axes: dict[tuple, str | None] = {}
-    env_order: dict[str, int] = {}
-    approach_order: dict[str, int] = {}
+    order: dict[str, dict[object, int]] = {"env": {}, "approach": {}, "world": {}, "exec": {}}
     for record in eval_records:
         s = record["settings"]
-        env_order.setdefault(s["env"], len(env_order))
-        approach_order.setdefault(s["approach"], len(approach_order))
         axis = s.get("perturb_axis")
         level = None if axis is None else s["perturbation"][axis]
-        key = (s["env"], s["approach"], s["demo_count"], level)
+        world, execution = s.get("world"), s.get("execution") if "world" in s else None
+        if axis is not None:  # a perturbation level is its world; execution is shown
+            execution = s.get("execution")
+        for name, value in (
+            ("env", s["env"]),
+            ("approach", s["approach"]),
+            ("world", world),
+            ("exec", execution),
+        ):
+            order[name].setdefault(value, len(order[name]))
+        key = (s["env"], s["approach"], s["demo_count"], level, world, execution)
         axes[key] = axis
         groups.setdefault(key, []).append(SeedResult.from_record(record))
     keys = sorted(
         groups,
         key=lambda k: (
-            env_order[k[0]],
-            approach_order[k[1]],
+            order["env"][k[0]],
+            order["approach"][k[1]],
             -1 if k[2] is None else k[2],
             0.0 if k[3] is None else k[3],
+            order["world"][k[4]],
+            order["exec"][k[5]],
         ),
     )
-    return [Row(k[0], k[1], k[2], tuple(sorted(groups[k], key=_seed)), k[3], axes[k]) for k in keys]
+    return [
+        Row(k[0], k[1], k[2], tuple(sorted(groups[k], key=_seed)), k[3], axes[k], k[4], k[5])
+        for k in keys
+    ]
 
 
 def _seed(result: SeedResult) -> int:
@@ -183,7 +221,9 @@ TABLE_HEADER = (
 
 def markdown_table(rows: Sequence[Row]) -> str:
     """Mean ± std over seeds of each row's per-seed values (a perturbation axis adds a
-    column after Demos)."""
+    column after Demos; swept worlds and executions their own table)."""
+    if any(r.world is not None or r.execution is not None for r in rows):
+        return robustness_table(rows)
     axis = next((r.axis for r in rows if r.axis is not None), None)
     header = TABLE_HEADER
     if axis is not None:
@@ -199,5 +239,38 @@ def markdown_table(rows: Sequence[Row]) -> str:
             f"| {row.median_seconds.format('.2f')} | {row.mean_seconds.format('.2f')} "
             f"| {row.nodes_created.format('.1f')} | {row.sim_steps_per_step.format('.1f')} "
             f"| {row.learning_seconds.format('.1f')} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+ROBUSTNESS_HEADER = (
+    "| Environment | Approach | Demos | World | Execution | Seeds | Solved (%) "
+    "| Pooled solved, 95 % CI | Replans / task | Median time (s) | Time vs nominal |\n"
+    "|---|---|---:|---|---|---:|---:|---:|---:|---:|---:|"
+)
+
+
+def robustness_table(rows: Sequence[Row]) -> str:
+    """Each world beside the nominal one on the same tasks (rows of one environment,
+    approach and demo count share their seeds' tasks): solved % as mean ± std over seeds,
+    the pooled rate with its Wilson 95 % interval, replans per task and the median time
+    over the nominal world's (same approach, demos and execution)."""
+    nominal: dict[tuple, float | None] = {}
+    for r in rows:
+        if r.world in (None, "nominal") and r.axis is None:
+            nominal[(r.env, r.approach, r.demos, r.execution)] = r.median_seconds.mean
+    lines = [ROBUSTNESS_HEADER]
+    for r in rows:
+        solved, tasks = r.pooled
+        low, high = r.pooled_interval
+        base = nominal.get((r.env, r.approach, r.demos, r.execution))
+        median = r.median_seconds.mean
+        ratio = "–" if not base or median is None else f"{median / base:.2f}x"
+        world = r.world or (f"{r.axis}={r.level:g}" if r.axis is not None else "nominal")
+        lines.append(
+            f"| {r.env} | {r.label} | {'–' if r.demos is None else r.demos} | {world} "
+            f"| {r.execution or 'closed-loop'} | {len(r.seeds)} | {r.solved_percent.format('.1f')} "
+            f"| {solved}/{tasks} [{100 * low:.1f}, {100 * high:.1f}] "
+            f"| {r.replans.format('.2f')} | {r.median_seconds.format('.2f')} | {ratio} |"
         )
     return "\n".join(lines) + "\n"

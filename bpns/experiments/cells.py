@@ -52,6 +52,9 @@ class Cell:
     demo_noise: float = 0.0  # demos cells: DART noise scale (bpns.data.demo_attempts)
     perturbation: Perturbation | None = None  # eval cells of a perturbation axis
     perturb_axis: str | None = None  # the axis' perturbation name
+    world: str | None = None  # eval cells of swept worlds: "moderate", "latency=0,1", ...
+    execution: str | None = None  # "closed-loop" or "open-loop" (None: not swept)
+    model: str = "nominal"  # what the planner simulates, when worlds are swept
 
     @property
     def key(self) -> str:
@@ -61,6 +64,10 @@ class Cell:
             level = ""
             if self.perturbation is not None and self.perturb_axis is not None:
                 level = f"-{self.perturb_axis}{getattr(self.perturbation, self.perturb_axis):g}"
+            if self.world is not None or self.execution is not None:
+                level += f"-{_slug(self.world or 'nominal')}-{self.execution or 'closed-loop'}"
+                if self.model != "nominal":
+                    level += f"-model-{_slug(self.model)}"
             return f"{EVAL}/{self.env}-{self.approach}{count}{level}-seed{self.seed}"
         if self.kind == SKILLS:
             return f"{SKILLS}/{self.env}{count}-seed{self.seed}"
@@ -91,6 +98,11 @@ class Cell:
             if self.perturbation is not None:  # (absent: cells stored before keep matching)
                 s["perturbation"] = dataclasses.asdict(self.perturbation)
                 s["perturb_axis"] = self.perturb_axis
+            if self.perturbation is not None or self.world is not None or self.execution:
+                # the world only is perturbed and execution closes the loop unless said
+                s["world"] = self.world
+                s["execution"] = self.execution or "closed-loop"
+                s["model"] = self.model
         return json.loads(json.dumps(s))
 
     def describe(self) -> str:
@@ -103,6 +115,8 @@ class Cell:
             parts.append(f"{self.count} demos")
         if self.perturbation is not None and self.perturb_axis is not None:
             parts.append(f"{self.perturb_axis}={getattr(self.perturbation, self.perturb_axis):g}")
+        if self.world is not None or self.execution is not None:
+            parts.append(f"world {self.world or 'nominal'} {self.execution or 'closed-loop'}")
         parts.append(f"seed {self.seed}")
         return " ".join(parts)
 
@@ -171,9 +185,18 @@ def _eval_cells(
             eval_tasks=config.eval_tasks,
             perturbation=physics,
             perturb_axis=axis if physics is not None else None,
+            world=world,
+            execution=execution,
+            model=config.model,
         )
         for physics in config.levels()
+        for world, execution in config.conditions()
     ]
+
+
+def _slug(text: str) -> str:
+    """``latency=0,1 mass_scale=0.5:2`` as a file-name part."""
+    return "".join(c if c.isalnum() or c in ".-_" else "_" for c in text.replace(" ", "+"))
 
 
 def skipped_approaches(config: SweepConfig, envs: Mapping[str, Environment]) -> list[str]:

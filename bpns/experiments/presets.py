@@ -10,8 +10,10 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+from bpns.acting.config import MODES
 from bpns.env.perturbations import Perturbation, PerturbationError
 from bpns.env.registry import environment_names
+from bpns.env.worlds import parse_model, parse_world
 from bpns.errors import BpnsError
 from bpns.experiments.approach_info import approach_names
 
@@ -37,6 +39,11 @@ class SweepConfig:
     timeout: float  # seconds of planning per eval task
     # (perturbation name, levels): every eval cell once per level (bpns.env.perturbations)
     perturb_axis: tuple[str, tuple[float, ...]] | None = None
+    # worlds (bpns.env.worlds: "nominal", a preset, or "NAME=SPREAD ...") x executions
+    # ("closed-loop", "open-loop"): every eval cell once per pair; () for neither axis
+    worlds: tuple[str, ...] = ()
+    executions: tuple[str, ...] = ()
+    model: str = "nominal"  # what the planner simulates (``bpns eval --model``)
 
     def __post_init__(self) -> None:
         for field in ("envs", "demo_counts", "seeds", "approaches"):
@@ -62,6 +69,35 @@ class SweepConfig:
                 raise SweepConfigError(f"perturbation axis {name}: {err}") from None
             if not levels or len(set(levels)) != len(levels):
                 raise SweepConfigError(f"perturbation axis {name}: empty or repeated levels")
+        self._check_worlds()
+        if self.perturb_axis is not None and self.worlds:
+            raise SweepConfigError("sweep either a perturbation axis or worlds, not both")
+
+    def _check_worlds(self) -> None:
+        for world in self.worlds:
+            try:
+                parse_world(world.split())
+            except PerturbationError as err:
+                raise SweepConfigError(f"world {world!r}: {err}") from None
+        try:
+            parse_model(self.model.split())
+        except PerturbationError as err:
+            raise SweepConfigError(f"model {self.model!r}: {err}") from None
+        for name in ("worlds", "executions"):
+            values = getattr(self, name)
+            if len(set(values)) != len(values):
+                raise SweepConfigError(f"{name} has repeated values: {list(values)}")
+        bad = [e for e in self.executions if e not in MODES]
+        if bad:
+            raise SweepConfigError(f"unknown execution {bad[0]!r}; known: {', '.join(MODES)}")
+
+    def conditions(self) -> list[tuple[str | None, str | None]]:
+        """(world, execution) of each eval cell; [(None, None)] when neither is swept."""
+        if not self.worlds and not self.executions:
+            return [(None, None)]
+        worlds = self.worlds or ("nominal",)
+        executions = self.executions or (MODES[0],)
+        return [(w, e) for w in worlds for e in executions]
 
     def levels(self) -> list[Perturbation | None]:
         """The physics of each eval cell: one per level of the axis (None: no axis)."""
@@ -81,7 +117,7 @@ class SweepConfig:
         for key in ("demo_counts", "seeds"):
             if key in fields:
                 fields[key] = tuple(sorted(fields[key]))  # type: ignore[arg-type]
-        for key in ("envs", "approaches"):
+        for key in ("envs", "approaches", "worlds", "executions"):
             if key in fields:
                 fields[key] = tuple(fields[key])  # type: ignore[arg-type]
         return dataclasses.replace(self, **fields)  # type: ignore[arg-type]
@@ -90,6 +126,8 @@ class SweepConfig:
         d = dataclasses.asdict(self)
         if self.perturb_axis is None:  # (absent: configs stored before keep comparing equal)
             del d["perturb_axis"]
+        if not self.worlds and not self.executions and self.model == "nominal":
+            del d["worlds"], d["executions"], d["model"]  # (absent, likewise)
         return d
 
 

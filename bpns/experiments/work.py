@@ -14,9 +14,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from bpns.acting.config import ExecutionConfig
 from bpns.atomic import storage_problem
 from bpns.baselines.learn import BaselinesConfig
+from bpns.env.perturbations import NOMINAL, Perturbation
 from bpns.env.registry import make_environment
+from bpns.env.worlds import WorldDistribution, parse_model, parse_world
+from bpns.evaluation.evaluate import EvalSpec, evaluate
+from bpns.evaluation.reporting import save_plans
 from bpns.experiments.cells import DEMOS, EVAL, SKILLS, SWEEP_GNN_SEED, Cell
 from bpns.workflow import collect_demos, learn_to_directory
 
@@ -113,10 +118,6 @@ def _learn(job: CellJob) -> dict[str, Any]:
 
 
 def _evaluate(job: CellJob) -> dict[str, Any]:
-    from bpns.env.perturbations import NOMINAL
-    from bpns.evaluation.evaluate import EvalSpec, evaluate
-    from bpns.evaluation.reporting import save_plans
-
     cell = job.cell
     assert cell.planning is not None and cell.approach is not None and cell.eval_tasks
     spec = EvalSpec(
@@ -126,7 +127,9 @@ def _evaluate(job: CellJob) -> dict[str, Any]:
         skills_dir=job.inputs[0] if job.inputs else None,
         task_seed=cell.seed,
         planner_seed=cell.seed,
-        perturbation=cell.perturbation or NOMINAL,
+        perturbation=_world_of(cell),
+        model=parse_model(cell.model.split()),
+        execution=ExecutionConfig.of_mode(cell.execution or "closed-loop"),
     )
     report = evaluate(spec, cell.eval_tasks, workers=1)
     save_plans(job.output, report)
@@ -141,6 +144,8 @@ def _evaluate(job: CellJob) -> dict[str, Any]:
             "samples": o.samples,
             "sim_steps": o.sim_steps,
             "num_actions": o.num_actions,
+            "replans": o.replans,
+            "world": o.world.label(),
         }
         for o in report.outcomes
     ]
@@ -150,3 +155,12 @@ def _evaluate(job: CellJob) -> dict[str, Any]:
         "learning_seconds": job.learning_seconds,
         "tasks": tasks,
     }
+
+
+def _world_of(cell: Cell) -> Perturbation | WorldDistribution:
+    """The worlds an eval cell runs in: its perturbation level, else its swept world."""
+    if cell.perturbation is not None:
+        return cell.perturbation
+    if cell.world is not None:
+        return parse_world(cell.world.split())
+    return NOMINAL

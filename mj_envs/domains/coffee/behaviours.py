@@ -39,7 +39,7 @@ from mj_envs.oracles.phases import DemonstrationFailed, Phase
 
 SAFE_Z = 0.25  # hand height for travel with the pot: it clears every cup
 FREE_Z = 0.22  # hand height for travel without the pot: the fingertips clear the knob
-TURN_GAIN, ANGLE_TOL = 0.5, 0.03
+TURN_GAIN, ANGLE_TOL = GAIN, 0.03  # wrist and tilt laws: the same stability bound
 CARRY_STEP = 0.012  # metres per step, per axis, with the pot in the hand
 SUPPORT_SNAP = 0.01
 KNOB_GRIP_BELOW_TOP = 0.009  # fingertips 9 mm above the lid

@@ -25,8 +25,10 @@ from mj_envs.oracles.motions import move_action
 
 SAFE_Z = 0.12  # travel height of the hand (block tops are at 0.04)
 FUNNEL_SLOPE = 4.0  # required height above the goal per metre of horizontal distance
-GRASP_DEADZONE = 0.005  # within this horizontal distance of a grasp the hand descends
-# fully: a policy imitating the funnel with a few mm of xy error must not hover above it
+FUNNEL_DEADZONE = 0.01  # within this horizontal distance of a grasp or release point the
+# hand descends fully: neither a policy imitating the funnel with a few mm of xy error nor
+# millimetres of observation noise (which the slope would turn into centimetres of
+# height) may keep it hovering above its goal
 FUNNEL_BAND = 0.02  # sideways motion fades in over this much height deficit
 GRASP_Z_ABOVE_CENTRE = 0.006  # keeps the fingertips off the table
 CLOSE_TOL = 0.006  # close the fingers once the hand is this near the grasp point
@@ -54,7 +56,7 @@ def pick_action(state: State, robot: Object, block: Object, hand_y: float) -> np
     """Funnel to the grasp point with the fingers open, then close there."""
     goal = grasp_point(state, block, hand_y)
     near = np.linalg.norm(state.data[robot][:3] - goal) <= CLOSE_TOL
-    return funnel_action(state, robot, goal, -1.0 if near else 1.0, GRASP_DEADZONE)
+    return funnel_action(state, robot, goal, -1.0 if near else 1.0, FUNNEL_DEADZONE)
 
 
 def place_action(state: State, robot: Object, block: Object, hand_y: float) -> np.ndarray:
@@ -69,7 +71,7 @@ def place_action(state: State, robot: Object, block: Object, hand_y: float) -> n
         # the block up the pads
         pos = state.data[robot][:3]
         return move_action(state, robot, np.array([LINE_X, hand_y, pos[2]]), grip=1.0)
-    return funnel_action(state, robot, goal, grip=-1.0)
+    return funnel_action(state, robot, goal, grip=-1.0, deadzone=FUNNEL_DEADZONE)
 
 
 def sample_grasp_offset(

@@ -42,6 +42,7 @@ class CoverEnv(MujocoEnv):
     capabilities = Capabilities(
         oracle_skills=oracle_skills,
         learning_defaults={"linear_policy_base": True},
+        demo_noise=0.05,
         perturbed=perturbed,
         observe=observe,
     )

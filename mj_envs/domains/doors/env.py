@@ -102,6 +102,7 @@ class DoorsEnv(MujocoEnv):
         oracle_skills=oracle_skills,
         given_skills=given_skills,
         default_camera="follow",
+        demo_noise=0.05,
         perturbed=perturbed,
         observe=observe,
     )

@@ -45,6 +45,7 @@ from mj_envs.domains.doors.rules import (
     door_frame,
     required_angle,
 )
+from mj_envs.oracles.motions import GAIN
 from mj_envs.robots.mobile_panda import to_base_frame
 
 CARRY = np.array([0.45, 0.0, 0.35])  # hand in the base frame while driving
@@ -83,11 +84,11 @@ def _hand_to(
     delta) packed into an action and whether it is there."""
     xy, yaw, hand, wrist, _ = _robot(state, robot)
     err = target_world - hand
-    d = to_base_frame(yaw, err)
+    d = GAIN * to_base_frame(yaw, err)
     n = float(np.max(np.abs(d)))
     if n > speed:
         d = d * (speed / n)
-    dw = float(np.clip(_wrap(wrist_target - wrist), -0.15, 0.15))
+    dw = float(np.clip(GAIN * _wrap(wrist_target - wrist), -0.15, 0.15))
     done = float(np.max(np.abs(err))) < POS_TOL * 0.5 and abs(_wrap(wrist_target - wrist)) < 0.05
     return _action(hand=d, wrist=dw, grip=grip), done
 
@@ -154,8 +155,8 @@ def _drive(
     dyaw = _wrap(goal_yaw - yaw)
     done = float(np.linalg.norm(goal_xy - xy)) < POS_TOL and abs(dyaw) < YAW_TOL
     a = _carry(state, robot)
-    a[0:2] = d
-    a[2] = dyaw
+    a[0:2] = GAIN * d
+    a[2] = GAIN * dyaw
     return a, done
 
 
@@ -196,7 +197,7 @@ def reach_handle(state: State, robot: Object, door: Object) -> np.ndarray:
         a, _ = _hand_to(state, robot, knob, wrist, 1.0, speed=0.01)
     else:
         a, _ = _hand_to(state, robot, knob, wrist, -1.0, speed=0.005)
-    a[6] = float(np.clip(dw, -0.15, 0.15))
+    a[6] = float(np.clip(GAIN * dw, -0.15, 0.15))
     return a
 
 

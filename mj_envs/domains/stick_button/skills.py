@@ -49,6 +49,7 @@ from mj_envs.domains.stick_button.rules import (
     STICK_ABOVE_BUTTON,
     STICK_HEIGHT,
 )
+from mj_envs.oracles.motions import GAIN
 
 APPROACH_CLEARANCE = 0.008  # pusher height above the cap before the slow push
 PRESS_SPEED = 0.003  # metres per step while pushing
@@ -146,7 +147,7 @@ def _press(
     if p[2] > approach_z + POS_TOL:
         goal = np.array([*hand_xy, hand[2] + approach_z - p[2]])
         return slow_near(state, robot, goal, grip)
-    dxy = 0.7 * (hand_xy - hand[:2])
+    dxy = GAIN * (hand_xy - hand[:2])
     return np.array([dxy[0], dxy[1], -PRESS_SPEED, grip])
 
 

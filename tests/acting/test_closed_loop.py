@@ -1,0 +1,146 @@
+"""Closed-loop execution: plans made in a model meet a world that differs from it.
+
+The toy world below is the toy Stick Button with one difference the model cannot know:
+the first time the robot carries the stick past x = 2.5 the stick slips out of its grip.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bpns.acting.config import ExecutionConfig, ExecutionConfigError
+from bpns.acting.monitor import kept_atoms, necessary_atoms, repair_point
+from bpns.approaches.bilevel import BilevelPlanning
+from bpns.evaluation.evaluate import plan_reaches_goal
+from bpns.execution.failures import FailureReason
+from bpns.planning.config import PlanningConfig
+from bpns.structs import GroundAtom, State
+from tests import toy_planning as toy
+
+CONFIG = PlanningConfig(timeout=20.0, n_samples=5)
+
+
+class SlipOnce(toy.ToyStickButton):
+    """The held stick slips out of the grip the first time it is carried past x = 2.5."""
+
+    def __init__(self) -> None:
+        self.slipped = False
+
+    def simulate(self, state: State, action: np.ndarray) -> State:
+        out = super().simulate(state, action)
+        robot = next(o for o in out.objects if o.type == toy.ROBOT)
+        stick = next(o for o in out.objects if o.type == toy.STICK)
+        if not self.slipped and out.get(robot, "holding") > 0.5 and out.get(robot, "x") > 2.5:
+            self.slipped = True
+            data = {o: v.copy() for o, v in out.data.items()}
+            data[robot][1] = 0.0
+            data[stick][2] = 0.0
+            return State(data)
+        return out
+
+
+def _far_button_task():
+    return toy.make_task([7.0])
+
+
+def test_the_monitor_fires_when_the_stick_slips_and_the_replan_solves_the_task():
+    model, world = toy.ToyStickButton(), SlipOnce()
+    planner = BilevelPlanning(model, toy.skills(pick_good=0.5), CONFIG)
+    task = _far_button_task()
+    solution = planner.solve_in_world(
+        task, model, world, np.random.default_rng(0), 20.0, ExecutionConfig()
+    )
+    assert solution.success and world.slipped
+    assert solution.replans == 1
+    kinds = [e.kind for e in solution.rollout.events]
+    assert kinds[0] == "atom_lost" and "replanned" in kinds
+    lost = solution.rollout.events[0].text
+    assert "Holding(robot, stick)" in lost and lost.startswith("replan 1:")
+    # the skills executed in the world: pick, the press that lost the stick, pick, press
+    names = [s.operator for s in solution.rollout.steps]
+    assert names == ["PickStick", "PressWithStick", "PickStick", "PressWithStick"]
+    assert solution.rollout.steps[1].outcome == str(FailureReason.ATOM_LOST)
+    # the actions are the world's: replayed in a fresh slippery world they reach the goal
+    assert plan_reaches_goal(SlipOnce(), task, solution.actions)
+
+
+def test_open_loop_replays_the_models_plan_and_misses_the_goal_in_the_world():
+    model, world = toy.ToyStickButton(), SlipOnce()
+    planner = BilevelPlanning(model, toy.skills(pick_good=0.5), CONFIG)
+    solution = planner.solve_in_world(
+        _far_button_task(),
+        model,
+        world,
+        np.random.default_rng(0),
+        20.0,
+        ExecutionConfig(closed_loop=False),
+    )
+    assert not solution.success and solution.reason is FailureReason.GOAL_NOT_REACHED
+    assert solution.replans == 0 and len(solution.rollout.actions) > 0
+
+
+def test_without_a_monitor_the_lost_stick_is_noticed_only_when_the_press_fails():
+    model, world = toy.ToyStickButton(), SlipOnce()
+    planner = BilevelPlanning(model, toy.skills(pick_good=0.5), CONFIG)
+    solution = planner.solve_in_world(
+        _far_button_task(),
+        model,
+        world,
+        np.random.default_rng(0),
+        20.0,
+        ExecutionConfig(watch_atoms=False),
+    )
+    assert solution.success and solution.replans == 1
+    assert solution.rollout.events[0].kind == "skill_failed"
+
+
+def test_a_replan_budget_of_zero_fails_at_the_first_divergence():
+    model, world = toy.ToyStickButton(), SlipOnce()
+    planner = BilevelPlanning(model, toy.skills(pick_good=0.5), CONFIG)
+    solution = planner.solve_in_world(
+        _far_button_task(),
+        model,
+        world,
+        np.random.default_rng(0),
+        20.0,
+        ExecutionConfig(max_replans=0),
+    )
+    assert not solution.success and solution.reason is FailureReason.REPLAN_BUDGET
+
+
+def test_in_a_world_that_is_the_model_closed_loop_is_the_plan_itself():
+    env = toy.ToyStickButton()
+    planner = BilevelPlanning(env, toy.skills(pick_good=0.5), CONFIG)
+    task = _far_button_task()
+    planned = planner.solve(task, np.random.default_rng(0), 20.0)
+    acted = planner.solve_in_world(
+        task, env, env, np.random.default_rng(0), 20.0, ExecutionConfig()
+    )
+    assert acted.success and acted.replans == 0 and not acted.rollout.events
+    np.testing.assert_array_equal(acted.actions, planned.actions)
+
+
+def test_necessary_atoms_regress_the_goal_through_the_plan():
+    robot, stick, (button,) = toy.objects(1)
+    pick = toy.PICK_STICK.ground((robot, stick))
+    press = toy.PRESS_WITH_STICK.ground((robot, stick, button))
+    goal = frozenset({GroundAtom(toy.PRESSED, (button,))})
+    needed = necessary_atoms([pick, press], goal)
+    holding = GroundAtom(toy.HOLDING, (robot, stick))
+    empty = GroundAtom(toy.HAND_EMPTY, (robot,))
+    assert needed == (frozenset({empty}), frozenset({holding}), goal)
+    # with the stick in hand the plan's second step is where to resume
+    assert repair_point(needed, frozenset({holding})) == 1
+    assert repair_point(needed, frozenset()) is None
+    # while pressing, the grip (a precondition it does not delete) must hold
+    assert kept_atoms(press, frozenset({holding}), goal, {toy.HOLDING}) == (holding,)
+    assert kept_atoms(pick, frozenset({empty}), needed[1], {toy.HAND_EMPTY}) == ()
+
+
+@pytest.mark.parametrize(
+    "fields", [{"max_replans": -1}, {"max_replans": 1.5}, {"rerefine_atol": 0.0}]
+)
+def test_bad_execution_settings_are_refused(fields):
+    with pytest.raises(ExecutionConfigError):
+        ExecutionConfig(**fields)
