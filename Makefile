@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml examples/bpns_stack/pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q torch==2.13.0
-	$(PY) -m pip install -q -e ".[dev]"
+	$(PY) -m pip install -q -e ".[dev,viz,lerobot]"  # the extras too: their tests run
 	$(PY) -m pip install -q --no-deps -e examples/bpns_stack  # the worked example (docs/NEW_TASK.md)
 	@touch $(STAMP)
 
