@@ -8,7 +8,8 @@ MJCF), with attributes that say what the rows are:
   ``perturbation`` (JSON of :class:`bpns.env.perturbations.Perturbation`: the physics the
   rollouts ran under, needed to replay them exactly);
 - per demo: ``task`` (the eval task index), ``solved`` (0/1), ``reason`` (why it
-  failed, "" when solved), ``plan`` (JSON list of :class:`bpns.execution.rollouts.PlanStep`).
+  failed, "" when solved), ``plan`` (JSON list of :class:`bpns.execution.rollouts.PlanStep`)
+  and, for a failed task, ``explanation`` (JSON: what the planner tried, as results.json).
 
 For a failed task the rows are the attempt that got furthest (bilevel planning: the
 deepest refined prefix, then the failed sample after it, with its failure reason), so
@@ -84,6 +85,8 @@ def _outcome_attrs(o: TaskOutcome) -> dict:
         "solved": int(o.solved),
         "reason": "" if o.solved else str(o.reason),
         "plan": json.dumps([s.to_json() for s in _rollout(o).steps]),
+        # a failed task: what the planner tried (bpns view shows it)
+        **({"explanation": json.dumps(o.explanation)} if o.explanation else {}),
     }
 
 

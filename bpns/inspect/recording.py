@@ -53,10 +53,11 @@ class RecordingOptions:
 
 
 def write_recording(
-    episode: Episode, out: str | os.PathLike, options: RecordingOptions = RecordingOptions()
+    episode: Episode, out: str | os.PathLike, options: RecordingOptions | None = None
 ) -> int:
     """Write ``episode`` to ``out`` (atomically); returns the number of steps recorded."""
     states = episode.demo.states
+    options = options or RecordingOptions()
     with atomic_path(out, ".rrd") as tmp:
         rec = rr.RecordingStream(APP_ID, recording_id=f"{episode.title}")
         rec.save(tmp, default_blueprint=_blueprint(episode, options))

@@ -34,6 +34,8 @@ class Recorded:
     title: str
     steps: int
     outcome: str
+    approach: str = ""
+    task: int | None = None  # an eval task's index (None: a demonstration)
 
     def line(self) -> str:
         return f"wrote {self.path} ({self.title}, {self.outcome}, {self.steps} steps)"
@@ -53,7 +55,8 @@ def record_file(
     episode = read_episode(path, env, task, demo)
     options = recording.RecordingOptions(tuple(cameras), *size)
     steps = recording.write_recording(episode, out, options)
-    return Recorded(out, episode.title, steps, episode.outcome)
+    task_index = episode.index if episode.is_rollout else None
+    return Recorded(out, episode.title, steps, episode.outcome, episode.approach, task_index)
 
 
 def recording_name(approach: str, task: int) -> str:
@@ -84,7 +87,11 @@ def record_evaluation(
             episode: Episode = episode_of_outcome(env, report, outcome)
             path = directory / recording_name(report.approach, outcome.index)
             steps = recording.write_recording(episode, path)
-            out.append(Recorded(path, episode.title, steps, episode.outcome))
+            out.append(
+                Recorded(
+                    path, episode.title, steps, episode.outcome, report.approach, outcome.index
+                )
+            )
             if progress is not None:
                 progress(out[-1].line())
     return out
