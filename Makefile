@@ -8,7 +8,7 @@ OUT    ?= outputs/cover
 N      ?= 50
 TASKS  ?= 10
 
-.PHONY: run test bench results experiment lint clean system-deps
+.PHONY: run test bench results experiment lint clean system-deps browser-deps
 
 $(STAMP): pyproject.toml examples/bpns_stack/pyproject.toml
 	@$(MAKE) --no-print-directory system-deps
@@ -34,10 +34,21 @@ system-deps:
 	  fi; \
 	fi
 
+# The report.html test drives Debian's headless Chromium (tests/inspect/test_report_page.py).
+browser-deps:
+	@if ! command -v chromium >/dev/null || ! command -v chromedriver >/dev/null; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo "installing chromium chromium-driver with apt-get"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null; \
+	  else \
+	    echo "note: the report.html test needs chromium (sudo apt-get install chromium chromium-driver)"; \
+	  fi; \
+	fi
+
 run: $(STAMP)
 	$(VENV)/bin/bpns run --env cover --demos $(N) --tasks $(TASKS) --timeout 30 --out $(OUT) --overwrite
 
-test: $(STAMP)
+test: $(STAMP) browser-deps
 	$(PY) -m pytest -q
 
 bench: $(STAMP)

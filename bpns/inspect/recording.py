@@ -60,6 +60,7 @@ def write_recording(
     options = options or RecordingOptions()
     with atomic_path(out, ".rrd") as tmp:
         rec = rr.RecordingStream(APP_ID, recording_id=f"{episode.title}")
+        rr.set_log_time_enabled(False, recording=rec)  # the steps are the time here
         rec.save(tmp, default_blueprint=_blueprint(episode, options))
         rec.send_recording_name(episode.title)
         track = episode.env.scene(states)
