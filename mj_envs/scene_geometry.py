@@ -111,9 +111,18 @@ def _visible_geoms(
 
 
 def _rgba(model: mujoco.MjModel, g: int) -> np.ndarray:
-    """A geom's colour as MuJoCo draws it: its material's unless it sets its own."""
-    rgba = model.geom_rgba[g]
+    """A geom's colour about as MuJoCo draws it: its material's unless it sets its own,
+    times the mean colour of the material's texture (a table's wood, a floor's checks)."""
+    rgba = np.array(model.geom_rgba[g], dtype=np.float64)
     mat = int(model.geom_matid[g])
-    if mat >= 0 and np.array_equal(rgba, _DEFAULT_RGBA):
-        return model.mat_rgba[mat]
+    if mat < 0:
+        return rgba
+    if np.array_equal(model.geom_rgba[g], _DEFAULT_RGBA):
+        rgba = np.array(model.mat_rgba[mat], dtype=np.float64)
+    tex = int(model.mat_texid[mat, mujoco.mjtTextureRole.mjTEXROLE_RGB])
+    if tex >= 0 and model.tex_nchannel[tex] >= 3:
+        n = model.tex_height[tex] * model.tex_width[tex] * model.tex_nchannel[tex]
+        start = model.tex_adr[tex]
+        pixels = model.tex_data[start : start + n].reshape(-1, model.tex_nchannel[tex])
+        rgba[:3] *= pixels[:, :3].mean(axis=0) / 255.0
     return rgba

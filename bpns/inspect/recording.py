@@ -6,7 +6,8 @@ Entities (docs/INSPECT.md):
 - ``world/bodies/<body>``: each body's pose at every step, its geoms (primitives and
   meshes) beneath it; ``world/hand``: the robot's grip point; ``world/subgoal``: the
   points the current skill's subgoal aims at (its objects' 3D features);
-- ``atoms/<atom>``: every ground atom's truth (0/1) at every step;
+- ``atoms/<atom>``: every ground atom's truth (0/1) at every step; ``atoms_true``: the
+  abstract state (the atoms true), where it changes;
 - ``features/<object>``: every object's features at every step (the states' own);
 - ``plan/skill`` (index of the skill being executed), ``plan/log`` (each skill as it
   starts and how it ended, the episode's outcome), ``plan/current`` (the skill, its
@@ -61,9 +62,9 @@ def write_recording(
     with atomic_path(out, ".rrd") as tmp:
         rec = rr.RecordingStream(APP_ID, recording_id=f"{episode.title}")
         rr.set_log_time_enabled(False, recording=rec)  # the steps are the time here
-        rec.save(tmp, default_blueprint=_blueprint(episode, options))
-        rec.send_recording_name(episode.title)
         track = episode.env.scene(states)
+        rec.save(tmp, default_blueprint=_blueprint(episode, options, track))
+        rec.send_recording_name(episode.title)
         index = _index(len(states), track)
         if track is not None:
             _log_scene(rec, track, index)
@@ -87,15 +88,31 @@ def _index(n: int, track: SceneTrack | None) -> list[rr.TimeColumn]:
     return columns
 
 
-def _blueprint(episode: Episode, options: RecordingOptions) -> rrb.Blueprint:
+def _eye(track: SceneTrack | None) -> rrb.EyeControls3D | None:
+    """A view of the whole episode from the front, above, to the side: around the box
+    every body and the hand went through."""
+    if track is None:
+        return None
+    points = np.concatenate([track.positions.reshape(-1, 3), track.hand])
+    low, high = points.min(axis=0), points.max(axis=0)
+    centre = (low + high) / 2
+    extent = max(float(np.max(high - low)), 0.8)
+    position = centre + extent * np.array([1.1, -0.9, 0.7])
+    return rrb.EyeControls3D(position=position, look_target=centre, eye_up=(0.0, 0.0, 1.0))
+
+
+def _blueprint(
+    episode: Episode, options: RecordingOptions, track: SceneTrack | None
+) -> rrb.Blueprint:
     side = [
+        rrb.TextDocumentView(origin="atoms_true", name="true atoms"),
         rrb.TimeSeriesView(origin="atoms", name="ground atoms (1 = true)"),
         rrb.TextLogView(origin="/", contents=["plan/log", "events"], name="skills and events"),
         rrb.TextDocumentView(origin="plan/current", name="current skill"),
     ]
     if episode.solved is False:
         side.append(rrb.TextDocumentView(origin="planner/attempts", name="planner attempts"))
-    main: list = [rrb.Spatial3DView(origin="world", name="scene")]
+    main: list = [rrb.Spatial3DView(origin="world", name="scene", eye_controls=_eye(track))]
     main += [rrb.Spatial2DView(origin=f"cameras/{c}", name=c) for c in options.cameras]
     main.append(rrb.TimeSeriesView(origin="features", name="features"))
     return rrb.Blueprint(
@@ -225,6 +242,15 @@ def _log_atoms(rec: rr.RecordingStream, episode: Episode, index: list[rr.TimeCol
         path = f"atoms/{rr.escape_entity_path_part(label)}"
         rec.log(path, rr.SeriesLines(names=[label]), static=True)
         rec.send_columns(path, indexes=index, columns=rr.Scalars.columns(scalars=truth[:, k]))
+    # the abstract state: the atoms true at a step, logged where it changes
+    for t in range(len(truth)):
+        if t and np.array_equal(truth[t], truth[t - 1]):
+            continue
+        rec.set_time(STEP, sequence=t)
+        true = [f"- {atom_label(a)}" for a, holds in zip(atoms, truth[t], strict=True) if holds]
+        text = f"### true at step {t}\n\n" + "\n".join(true)
+        rec.log("atoms_true", rr.TextDocument(text, media_type="text/markdown"))
+    rec.reset_time()
 
 
 def _log_features(rec: rr.RecordingStream, episode: Episode, index: list[rr.TimeColumn]) -> None:
