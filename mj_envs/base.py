@@ -68,6 +68,52 @@ def observe(env: MujocoEnv, state: State) -> State:
     return State(seen, state.sim)
 
 
+# the parts of MuJoCo's integration state that are state, not physics: copied as they are
+_STATE_FIELDS = (
+    "qpos",
+    "qvel",
+    "act",
+    "qacc_warmstart",
+    "ctrl",
+    "qfrc_applied",
+    "xfrc_applied",
+    "eq_active",
+    "mocap_pos",
+    "mocap_quat",
+)
+
+
+def adopt(env: MujocoEnv, state: State) -> State:
+    """``state`` (simulated under any physics of this task's scene) as a state of
+    ``env``'s physics (what ``bpns.env.environment.adopt_state`` asks for): positions,
+    velocities, controls and the controller's and domain's userdata carry over as they
+    are; only physics differs. A
+    latency queue keeps the most recent commanded actions that fit ``env``'s own queue
+    (zeros where it is longer than the source's)."""
+    if state.sim is None:
+        raise ValueError("the state carries no simulator state")
+    src = state.sim.world
+    assert isinstance(src, World)
+    dst = env.load_world(src.xml)
+    if dst is src:
+        return state
+    src.load(state.sim.flat)
+    s, d = src.data, dst.data
+    d.time = s.time
+    for name in _STATE_FIELDS:
+        getattr(d, name)[:] = getattr(s, name)
+    base = dst.queue.start
+    d.userdata[:base] = s.userdata[:base]
+    queue = np.zeros(dst.queue_size)
+    pending = s.userdata[src.queue]
+    k = min(dst.queue_size, pending.size)
+    if k:
+        queue[queue.size - k :] = pending[pending.size - k :]
+    d.userdata[dst.queue] = queue
+    mujoco.mj_forward(dst.model, d)
+    return env._state(dst, state.objects)
+
+
 class MujocoEnv(abc.ABC):
     """Base for the Panda-on-a-table domains."""
 
@@ -306,7 +352,13 @@ class MujocoEnv(abc.ABC):
         return self._world(text)
 
     def state_from_flat(self, world: Hashable, flat: np.ndarray, like: State) -> State:
+        """``flat`` loaded into ``world``; when ``like`` is a state of the same scene under
+        other physics and ``flat`` its flat state, it is carried over (:func:`adopt`)."""
         assert isinstance(world, World)
+        src = like.sim.world if like.sim is not None else None
+        if isinstance(src, World) and src is not world and src.xml == world.xml:
+            if flat is like.sim.flat or np.array_equal(flat, like.sim.flat):
+                return adopt(self, like)
         world.load(np.asarray(flat, dtype=np.float64))
         return self._state(world, like.objects)
 

@@ -24,7 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bpns.env.environment import Environment
+from bpns.acting.config import ExecutionConfig
+from bpns.env.abstraction import abstract
+from bpns.env.environment import Environment, adopt_state
 from bpns.errors import BpnsError
 from bpns.execution.failures import FailureReason
 from bpns.execution.rollouts import Rollout
@@ -62,6 +64,10 @@ class Solution:
     # what was executed (bpns.execution.rollouts): the plan when solved, else the attempt that got
     # furthest; None when the approach does not say
     rollout: Rollout | None = field(default=None, repr=False)
+    # closed-loop execution in a world that differs from the model (``Approach.solve_in_world``):
+    # divergences repaired, and boundaries where the plan's rest was refined again
+    replans: int = 0
+    rerefinements: int = 0
 
 
 def failure(reason: FailureReason, action_dim: int, **counts: int) -> Solution:
@@ -70,13 +76,61 @@ def failure(reason: FailureReason, action_dim: int, **counts: int) -> Solution:
 
 
 class Approach(abc.ABC):
-    """Solves tasks of the environment it was built for, one ``solve`` call per task."""
+    """Solves tasks of the environment it was built for (the planner's *model*), one
+    ``solve`` call per task; ``solve_in_world`` executes in a *world* that may differ from it."""
 
     @abc.abstractmethod
     def solve(self, task: Task, rng: np.random.Generator, timeout: float) -> Solution:
         """Solve ``task`` within ``timeout`` wall-clock seconds, drawing randomness from
         ``rng`` only. Must not raise for a task it cannot solve: return a failed
         Solution (``FailureReason.TIMEOUT`` when the time ran out)."""
+
+    def solve_in_world(
+        self,
+        task: Task,
+        model: Environment,
+        world: Environment,
+        rng: np.random.Generator,
+        timeout: float,
+        execution: ExecutionConfig,
+    ) -> Solution:
+        """Solve ``task`` (a task of ``world``) acting in ``world``, planning in ``model``
+        (the environment this approach was built for); the Solution's actions are those
+        the world executed. This default plans once with :meth:`solve` and replays the
+        plan open loop (:func:`open_loop`); the built-in approaches execute closed loop
+        when ``execution.closed_loop`` (their own ``solve_in_world``)."""
+        return open_loop(self, task, model, world, rng, timeout)
+
+
+def open_loop(
+    approach: Approach,
+    task: Task,
+    model: Environment,
+    world: Environment,
+    rng: np.random.Generator,
+    timeout: float,
+) -> Solution:
+    """Plan ``task`` in ``model`` from the world's initial state, then replay the actions
+    in ``world`` whatever happens; solved when the goal holds at the end there
+    (``GOAL_NOT_REACHED`` otherwise). Under the very physics of the model the replay is
+    the plan itself and is not simulated again."""
+    init = adopt_state(model, task.init)
+    solution = approach.solve(Task(init, task.goal, task.horizon), rng, timeout)
+    if not solution.success or init is task.init:
+        return solution
+    state = task.init
+    for action in solution.actions:
+        state = world.simulate(state, action)
+    if task.goal_holds(abstract(state, world.goal_predicates)):
+        return solution
+    rollout = solution.rollout or Rollout(solution.actions)
+    return dataclasses.replace(
+        solution,
+        success=False,
+        actions=np.zeros((0, solution.actions.shape[1])),
+        reason=FailureReason.GOAL_NOT_REACHED,
+        rollout=rollout,
+    )
 
 
 class SkillSource(str, enum.Enum):

@@ -5,17 +5,21 @@ AbstractPlans=1 (planner settings of the same learned skills)."""
 from __future__ import annotations
 
 import dataclasses
+import time
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
+from bpns.acting.config import ExecutionConfig
+from bpns.acting.replanning import ClosedLoopPlanner, ClosedLoopResult, world_run
 from bpns.approaches.base import (
     Approach,
     ApproachEntry,
     NoOracleSkillsError,
     SkillSource,
     Solution,
+    open_loop,
     with_timeout,
 )
 from bpns.env.environment import Environment
@@ -55,6 +59,48 @@ class BilevelPlanning(Approach):
             explanation=None if result.success else _explanation(result.stats),
             rollout=_rollout(result, np.asarray(self.env.action_low).size),
         )
+
+    def solve_in_world(
+        self,
+        task: Task,
+        model: Environment,
+        world: Environment,
+        rng: np.random.Generator,
+        timeout: float,
+        execution: ExecutionConfig,
+    ) -> Solution:
+        """Closed loop (:mod:`bpns.acting.replanning`): plan in ``model``, execute in
+        ``world`` step by step, repair the plan on divergence; open loop otherwise."""
+        if not execution.closed_loop:
+            return open_loop(self, task, model, world, rng, timeout)
+        deadline = time.monotonic() + timeout
+        config = with_timeout(self.config, timeout)
+        planner = ClosedLoopPlanner(self.skills, model, config, execution, _explanation)
+        out = planner.run(world_run(world, task, config, deadline), rng, deadline)
+        return closed_loop_solution(out)
+
+
+def closed_loop_solution(out: ClosedLoopResult) -> Solution:
+    """A :class:`Solution` of what the closed loop did: the world's actions and rollout."""
+    run, s = out.world, out.stats
+    rollout = run.rollout()
+    if not run.actions and s.furthest is not None:  # nothing reached the world
+        rollout = dataclasses.replace(s.furthest, events=rollout.events)
+    actions = run.action_array()
+    return Solution(
+        success=out.success,
+        actions=actions if out.success else np.zeros((0, actions.shape[1])),
+        reason=out.reason,
+        skeleton=out.skeleton if out.success else (),
+        nodes_created=s.nodes_created,
+        abstract_plans=s.abstract_plans,
+        samples=s.samples,
+        sim_steps=s.model_steps + run.world_steps,
+        explanation=None if out.success else (s.explanation or {"reason": str(out.reason)}),
+        rollout=rollout,
+        replans=s.replans,
+        rerefinements=s.rerefinements,
+    )
 
 
 def _rollout(result: PlanResult, action_dim: int) -> Rollout | None:

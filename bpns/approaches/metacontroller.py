@@ -18,10 +18,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bpns.approaches.base import Approach, Solution, failure
-from bpns.env.abstraction import abstract
-from bpns.env.environment import Environment
+from bpns.acting.config import ExecutionConfig
+from bpns.acting.world import WorldRun
+from bpns.approaches.base import Approach, Solution, failure, open_loop
+from bpns.env.environment import Environment, adopt_state
 from bpns.execution.executor import (
+    CompletionTest,
     Executed,
     ExecutionTimeout,
     RolloutConfig,
@@ -30,9 +32,9 @@ from bpns.execution.executor import (
     expected_after,
 )
 from bpns.execution.failures import NOT_EXECUTED, FailureReason
-from bpns.execution.rollouts import REACHED, rollout_of
+from bpns.execution.rollouts import rollout_of
 from bpns.planning.config import PlanningConfig
-from bpns.structs import GroundAtom, NoSubgoal, Object, Skill, State, Task
+from bpns.structs import GroundAtom, GroundOperator, NoSubgoal, Object, Skill, State, Task
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,60 +77,103 @@ class Metacontroller(Approach):
         """The next ground skill to execute, or None when there is none to try."""
 
     def solve(self, task: Task, rng: np.random.Generator, timeout: float) -> Solution:
-        deadline = time.monotonic() + timeout
-        executor = SkillExecutor(self.env, task, RolloutConfig.of(self.config), deadline)
-        state = task.init
-        atoms = abstract(state, self.env.predicates)
-        actions: list[np.ndarray] = []
-        history: list[SkillChoice] = []
-        skeleton: list[str] = []
+        return self._run(task, None, rng, timeout, None)
+
+    def solve_in_world(
+        self,
+        task: Task,
+        model: Environment,
+        world: Environment,
+        rng: np.random.Generator,
+        timeout: float,
+        execution: ExecutionConfig,
+    ) -> Solution:
+        """Closed loop: choose from the world's state, find each choice's subgoal in the
+        model (as :meth:`solve` does), execute it in the world; a choice that fails there
+        is a divergence, and the next choice starts from where the world is."""
+        if not execution.closed_loop:
+            return open_loop(self, task, model, world, rng, timeout)
+        return self._run(task, world, rng, timeout, execution)
+
+    def _subgoal(
+        self,
+        choice: SkillChoice,
+        op: GroundOperator,
+        test: CompletionTest,
+        state: State,
+        executor: SkillExecutor,
+        used: int,
+        rng: np.random.Generator,
+    ) -> tuple[np.ndarray | None, Executed | FailureReason, int]:
+        """Draw subgoals until one's rollout from ``state`` (in the model) reaches the
+        operator's predicted atoms: (subgoal, what ran, samples drawn)."""
+        out: Executed | FailureReason = FailureReason.EXHAUSTED
+        subgoal = choice.subgoal
         samples = 0
+        for _ in range(1 if choice.subgoal is not None else self.samples_for(choice)):
+            subgoal = choice.subgoal
+            if subgoal is None:
+                samples += 1
+                try:
+                    subgoal = np.asarray(
+                        choice.skill.sampler(state, op.objects, rng), dtype=np.float64
+                    )
+                except NoSubgoal:
+                    out = FailureReason.NO_SUBGOAL
+                    continue
+                except Exception:
+                    out = FailureReason.SAMPLER_ERROR
+                    continue
+                if not np.isfinite(subgoal).all():
+                    out = FailureReason.SAMPLER_NONFINITE
+                    continue
+            out = executor.execute(choice.skill, op.objects, subgoal, state, test, used)
+            if not isinstance(out, FailureReason):
+                break
+        return subgoal, out, samples
 
-        done: list = []  # (ground operator, subgoal, actions, outcome) per executed skill
+    def _run(
+        self,
+        task: Task,
+        world_env: Environment | None,
+        rng: np.random.Generator,
+        timeout: float,
+        execution: ExecutionConfig | None,
+    ) -> Solution:
+        """The choose-and-execute loop, in the model alone (``world_env`` None) or acting
+        in ``world_env``."""
+        deadline = time.monotonic() + timeout
+        config = RolloutConfig.of(self.config)
+        executor = SkillExecutor(self.env, task, config, deadline)
+        run = WorldRun(world_env or self.env, task, config, deadline)
+        history: list[SkillChoice] = []
+        samples = replans = 0
 
-        def failed(
-            reason: FailureReason, step: str | None = None, attempt: tuple | None = None
-        ) -> Solution:
-            out = failure(reason, self.action_dim, samples=samples, sim_steps=executor.sim_steps)
-            executed = {"executed": list(skeleton), "failed_step": step}
-            tried = done if attempt is None else [*done, attempt]
-            rollout = rollout_of(tried, self.action_dim)
-            return dataclasses.replace(out, explanation=executed, rollout=rollout)
+        def failed(reason: FailureReason, step: str | None = None, attempt=None) -> Solution:
+            sim = executor.sim_steps + (run.world_steps if world_env is not None else 0)
+            out = failure(reason, self.action_dim, samples=samples, sim_steps=sim)
+            executed = {"executed": [str(e[0]) for e in run.executions], "failed_step": step}
+            tried = run.executions if attempt is None else [*run.executions, attempt]
+            rollout = rollout_of(tried, self.action_dim, run.events)
+            return dataclasses.replace(out, explanation=executed, rollout=rollout, replans=replans)
 
         try:
-            while not task.goal_holds(atoms):
+            while not run.goal_holds():
                 if time.monotonic() >= deadline:
                     return failed(FailureReason.TIMEOUT)
                 if len(history) >= self.config.max_plan_length:
                     return failed(FailureReason.NO_SKILL)
-                choice = self.choose(task, state, atoms, history, rng)
+                atoms = run.atoms()
+                choice = self.choose(task, run.state, atoms, history, rng)
                 if choice is None:
                     return failed(FailureReason.NO_SKILL)
                 op = choice.skill.operator.ground(choice.objects)
                 test = completion_test(op, expected_after(op, atoms))
-                out: Executed | FailureReason = FailureReason.EXHAUSTED
-                for _ in range(1 if choice.subgoal is not None else self.samples_for(choice)):
-                    subgoal = choice.subgoal
-                    if subgoal is None:
-                        samples += 1
-                        try:
-                            subgoal = np.asarray(
-                                choice.skill.sampler(state, op.objects, rng), dtype=np.float64
-                            )
-                        except NoSubgoal:
-                            out = FailureReason.NO_SUBGOAL
-                            continue
-                        except Exception:
-                            out = FailureReason.SAMPLER_ERROR
-                            continue
-                        if not np.isfinite(subgoal).all():
-                            out = FailureReason.SAMPLER_NONFINITE
-                            continue
-                    out = executor.execute(
-                        choice.skill, op.objects, subgoal, state, test, len(actions)
-                    )
-                    if not isinstance(out, FailureReason):
-                        break
+                state = run.state if world_env is None else adopt_state(self.env, run.state)
+                subgoal, out, drawn = self._subgoal(
+                    choice, op, test, state, executor, run.used, rng
+                )
+                samples += drawn
                 if isinstance(out, FailureReason):
                     ran = out not in NOT_EXECUTED
                     attempt = (
@@ -138,19 +183,30 @@ class Metacontroller(Approach):
                         str(out),
                     )
                     return failed(out, str(op), attempt)
-                done.append((op, subgoal, out.actions, REACHED))
+                assert subgoal is not None
+                if world_env is None or state is run.state:  # the world is the model
+                    run.reuse(op, subgoal, out.actions, out.states)
+                else:
+                    reason = run.execute(choice.skill, op, subgoal, test)
+                    if reason is not None:
+                        replans += 1
+                        run.event(
+                            "skill_failed", f"replan {replans}: {op} failed in the world: {reason}"
+                        )
+                        assert execution is not None
+                        if replans > execution.max_replans:
+                            return failed(FailureReason.REPLAN_BUDGET)
+                        continue
                 history.append(choice)
-                skeleton.append(str(op))
-                actions.extend(out.actions)
-                state = out.states[-1]
-                atoms = abstract(state, self.env.predicates)
         except ExecutionTimeout:
             return failed(FailureReason.TIMEOUT)
+        sim = executor.sim_steps + (run.world_steps if world_env is not None else 0)
         return Solution(
             success=True,
-            actions=np.array(actions, dtype=np.float64).reshape(len(actions), self.action_dim),
-            skeleton=tuple(skeleton),
+            actions=run.action_array(),
+            skeleton=tuple(str(e[0]) for e in run.executions),
             samples=samples,
-            sim_steps=executor.sim_steps,
-            rollout=rollout_of(done, self.action_dim),
+            sim_steps=sim,
+            rollout=run.rollout(),
+            replans=replans,
         )

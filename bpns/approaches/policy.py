@@ -15,7 +15,8 @@ import time
 
 import numpy as np
 
-from bpns.approaches.base import Approach, Solution, failure
+from bpns.acting.config import ExecutionConfig
+from bpns.approaches.base import Approach, Solution, failure, open_loop
 from bpns.env.abstraction import abstract
 from bpns.env.environment import Environment, observation_of
 from bpns.execution.executor import checked_action
@@ -38,6 +39,26 @@ class ClosedLoopPolicy(Approach):
         """The action to take in ``state`` (the task gives objects and goal)."""
 
     def solve(self, task: Task, rng: np.random.Generator, timeout: float) -> Solution:
+        return self._run(self.env, task, rng, timeout)
+
+    def solve_in_world(
+        self,
+        task: Task,
+        model: Environment,
+        world: Environment,
+        rng: np.random.Generator,
+        timeout: float,
+        execution: ExecutionConfig,
+    ) -> Solution:
+        """A policy acting every control step needs no model: closed loop, it acts in
+        ``world`` on the world's observation itself."""
+        if not execution.closed_loop:
+            return open_loop(self, task, model, world, rng, timeout)
+        return self._run(world, task, rng, timeout)
+
+    def _run(
+        self, env: Environment, task: Task, rng: np.random.Generator, timeout: float
+    ) -> Solution:
         deadline = time.monotonic() + timeout
         self.reset(task, rng)
         state = task.init
@@ -47,8 +68,8 @@ class ClosedLoopPolicy(Approach):
             out = failure(reason, self.low.size, sim_steps=len(actions))
             return dataclasses.replace(out, rollout=_rollout(actions, self.low.size))
 
-        goal_predicates = self.env.goal_predicates
-        observe = observation_of(self.env)  # what the policy sees (e.g. noisy features)
+        goal_predicates = env.goal_predicates
+        observe = observation_of(env)  # what the policy sees (e.g. noisy features)
         while not task.goal_holds(abstract(state, goal_predicates)):
             if len(actions) >= task.horizon:
                 return failed(FailureReason.TASK_HORIZON)
@@ -61,7 +82,7 @@ class ClosedLoopPolicy(Approach):
             action = checked_action(raw, self.low, self.high)
             if isinstance(action, FailureReason):
                 return failed(action)
-            state = self.env.simulate(state, action)
+            state = env.simulate(state, action)
             actions.append(action)
         return Solution(
             success=True,

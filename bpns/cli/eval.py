@@ -6,6 +6,7 @@ import argparse
 import dataclasses
 import sys
 
+from bpns.acting.config import MODES, ExecutionConfig
 from bpns.cli.common import (
     UserError,
     approach_by_name,
@@ -29,7 +30,8 @@ from bpns.cli.paths import (
     check_output_file,
     writing,
 )
-from bpns.env.perturbations import PerturbationError, parse_perturbation
+from bpns.env.perturbations import PerturbationError
+from bpns.env.worlds import ModelSpec, WorldDistribution, parse_model, parse_world
 from bpns.evaluation.reporting import solved_line
 from bpns.inspect.extras import require
 from bpns.inspect.html_report import PAGE
@@ -108,15 +110,7 @@ def configure(p: argparse.ArgumentParser) -> None:
         help="with --video: a camera of the scene, or 'all' (every camera tiled); "
         "default: the environment's (Doors: follow)",
     )
-    p.add_argument(
-        "--perturb",
-        nargs="+",
-        metavar="NAME=VALUE",
-        default=[],
-        help="evaluate under perturbed physics: mass_scale, friction_scale, gain_scale (arm "
-        "kp), action_noise (std, fraction of the action range), obs_noise (std on the "
-        "policies' features), latency (control steps), seed (of the noises); see README",
-    )
+    add_world_arguments(p)
     p.add_argument("--no-validate", action="store_true", help="skip re-simulating plans")
     p.add_argument(
         "--explain",
@@ -173,15 +167,79 @@ def check_inspect_outputs(args: argparse.Namespace, names: list[str]) -> None:
             check_output_file(args.rerun / recording_name(name, task), "--rerun", args.overwrite)
 
 
+def add_world_arguments(p: argparse.ArgumentParser) -> None:
+    """The world the tasks execute in, the model the planner believes, and how plans
+    meet the world (docs/WORLDS.md)."""
+    p.add_argument(
+        "--perturb",
+        nargs="+",
+        metavar="PRESET|NAME=VALUE",
+        default=[],
+        help="execute in a perturbed world: a preset (moderate, hard) and/or NAME=VALUE items "
+        "with NAME one of mass_scale, friction_scale, gain_scale (arm kp), action_noise (std, "
+        "fraction of the action range), obs_noise (std on the policies' features, m/rad), "
+        "latency (control steps), seed; VALUE a number, a range LOW:HIGH or a set A,B,C, "
+        "drawn per task (docs/WORLDS.md)",
+    )
+    p.add_argument(
+        "--model",
+        nargs="+",
+        metavar="nominal|world|NAME=VALUE",
+        default=["nominal"],
+        help="what planning simulates: the nominal physics (default), the world itself "
+        "(the paper's closed world: the planner knows every perturbation), or a belief "
+        "given as NAME=VALUE items",
+    )
+    p.add_argument(
+        "--execution",
+        choices=MODES,
+        default=MODES[0],
+        help="closed-loop (default): execute skill by skill in the world, monitor, replan on "
+        "divergence; open-loop: replay the model's plan in the world",
+    )
+    p.add_argument(
+        "--max-replans",
+        type=nonnegative,
+        default=ExecutionConfig().max_replans,
+        help="closed loop: divergences repaired per task before it fails (default: %(default)s)",
+    )
+    p.add_argument(
+        "--rerefine-atol",
+        type=tolerance_or_off,
+        default=ExecutionConfig().rerefine_atol,
+        help="closed loop: refine the rest of the plan again at a skill boundary where the "
+        "world's features left the model's by more than this (m/rad), or 'off' "
+        "(default: %(default)s)",
+    )
+
+
+def world_settings(
+    args: argparse.Namespace,
+) -> tuple[WorldDistribution, ModelSpec, ExecutionConfig]:
+    """The checked ``--perturb``, ``--model`` and execution flags."""
+    try:
+        worlds = parse_world(args.perturb)
+    except PerturbationError as err:
+        raise UserError(f"--perturb: {err}") from None
+    try:
+        model = parse_model(args.model)
+    except PerturbationError as err:
+        raise UserError(f"--model: {err}") from None
+    atol = None if args.rerefine_atol == "off" else args.rerefine_atol
+    if atol == 0:
+        raise UserError("--rerefine-atol: expected a number > 0 or 'off', got 0")
+    execution = ExecutionConfig.of_mode(
+        args.execution, max_replans=args.max_replans, rerefine_atol=atol
+    )
+    return worlds, model, execution
+
+
 def run(args: argparse.Namespace) -> int:
     from bpns.approaches import SkillSource
     from bpns.env.environment import perturbed
     from bpns.planning.config import planning_config_for
 
-    try:
-        perturbation = parse_perturbation(args.perturb)
-    except PerturbationError as err:
-        raise UserError(f"--perturb: {err}") from None
+    worlds, model, execution = world_settings(args)
     if args.video is None and (args.task is not None or args.camera is not None):
         raise UserError("--task and --camera choose what --video renders: pass --video too")
     if args.task is not None and args.task >= args.tasks:
@@ -202,8 +260,9 @@ def run(args: argparse.Namespace) -> int:
         env, _ = learned_in(args.skills)  # the environment the skills record
     else:
         env = env_by_name(args.env)
-    try:
-        perturbed(env, perturbation)  # an environment without perturbations says so now
+    try:  # an environment without perturbations says so now
+        perturbed(env, worlds.draw(0))
+        perturbed(env, model.belief)
     except PerturbationError as err:
         raise UserError(f"--perturb: {err}") from None
     if (
@@ -234,7 +293,9 @@ def run(args: argparse.Namespace) -> int:
         train=args.train,
         validate=not args.no_validate,
         workers=workers,
-        perturbation=perturbation,
+        perturbation=worlds,
+        model=model,
+        execution=execution,
     )
     reports = evaluate_approaches(
         env,

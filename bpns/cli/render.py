@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
         if rollouts is not None:
             row = rollouts.row(args.task)
             demo = rollouts.demonstration(env, row)
-            world = rollouts.environment(env)
+            world = rollouts.environment(env, row)
             n = render_rollout(
                 world,
                 demo.states,
@@ -71,7 +71,8 @@ def run(args: argparse.Namespace) -> int:
                 args.width,
                 args.height,
                 args.png,
-                rollouts.perturbation.label(),
+                row.physics.label(),
+                row.events,
             )
         else:
             (demo,) = load_demonstrations(args.file, env, [args.demo])

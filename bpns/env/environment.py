@@ -21,6 +21,7 @@ import numpy as np
 
 from bpns.env.perturbations import Perturbation, PerturbationError
 from bpns.env.scene import SceneTrack
+from bpns.errors import BpnsError
 from bpns.structs import GivenSkill, Predicate, Skill, State, Task, Type
 
 
@@ -54,7 +55,7 @@ class Capabilities:
                        Refinement ends a rollout that reaches one at once instead of
                        simulating out the skill's horizon; None: no state is one.
 
-    The last two take the environment because one declaration (a class attribute) serves
+    ``observe`` takes the environment because one declaration (a class attribute) serves
     every instance, including the perturbed copies ``perturbed`` returns.
     """
 
@@ -216,3 +217,24 @@ def observation_of(env: Environment) -> Callable[[State], State]:
 
 def _identity(state: State) -> State:
     return state
+
+
+class AdoptionError(BpnsError, ValueError):
+    """A state of one physics cannot be carried into another."""
+
+
+def adopt_state(env: Environment, state: State) -> State:
+    """``state``, simulated under other physics of the same task (the world it executes
+    in), as a state of ``env``'s physics (the planner's model): what a state estimator
+    hands the planner. Through the protocol's ``state_from_flat`` in ``env``'s own scene
+    of the task, which is handed ``state`` itself as ``like`` so that it can carry a flat
+    state laid out by another physics (mj_envs: a latency queue of another length)."""
+    if state.sim is None:
+        raise AdoptionError("the state carries no simulator state to hand to the model")
+    world = env.load_world(env.save_world(state.sim.world))
+    try:
+        return env.state_from_flat(world, state.sim.flat, state)
+    except ValueError as err:
+        raise AdoptionError(
+            f"environment {env.name!r} cannot carry a state of its world into its model: {err}"
+        ) from None

@@ -13,6 +13,7 @@ picklable :class:`EvalSpec` (predicates are code and need not pickle).
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import statistics
 import time
@@ -22,12 +23,16 @@ from typing import Any
 
 import numpy as np
 
+from bpns.acting.config import CLOSED_LOOP, ExecutionConfig
 from bpns.approaches import Approach, get_approach
 from bpns.approaches import NoOracleSkillsError as NoOracleSkillsError  # re-exported
 from bpns.env.abstraction import abstract
 from bpns.env.environment import Environment, perturbed
 from bpns.env.perturbations import NOMINAL, Perturbation
-from bpns.execution.rollouts import Rollout
+from bpns.env.registry import make_environment
+from bpns.env.worlds import NOMINAL_MODEL, ModelSpec, WorldDistribution
+from bpns.evaluation.intervals import wilson_interval
+from bpns.execution.rollouts import Event, Rollout
 from bpns.planning.config import PlanningConfig
 from bpns.pools import make_pool
 from bpns.structs import Task
@@ -45,7 +50,15 @@ class EvalSpec:
     planner_seed: int = 0  # rng of sampling, per task: [planner_seed, task index]
     train_tasks: bool = False  # evaluate on the train distribution instead
     validate: bool = True
-    perturbation: Perturbation = NOMINAL  # the physics the tasks run under
+    # the world the tasks execute in: one physics for every task, or drawn per task
+    perturbation: Perturbation | WorldDistribution = NOMINAL
+    model: ModelSpec = NOMINAL_MODEL  # what the planner's simulator knows of the world
+    execution: ExecutionConfig = CLOSED_LOOP  # closed loop with replanning, or open loop
+
+    @property
+    def worlds(self) -> WorldDistribution:
+        p = self.perturbation
+        return p if isinstance(p, WorldDistribution) else WorldDistribution.of(p)
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,6 +80,9 @@ class TaskOutcome:
     explanation: dict | None = None  # a failed task: what was tried and why it failed
     actions: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
     rollout: Rollout | None = field(repr=False, default=None)
+    world: Perturbation = NOMINAL  # the physics this task executed in (drawn per task)
+    replans: int = 0  # closed loop: divergences repaired
+    rerefinements: int = 0  # closed loop: boundaries where the plan's rest was refined again
 
     @property
     def sim_steps_per_step(self) -> float:
@@ -74,9 +90,15 @@ class TaskOutcome:
         (1.0: nothing simulated in vain); NaN unless solved with at least one action."""
         return self.sim_steps / self.num_actions if self.solved and self.num_actions else math.nan
 
+    @property
+    def events(self) -> tuple[Event, ...]:
+        return self.rollout.events if self.rollout is not None else ()
+
     def to_json(self) -> dict[str, Any]:
         d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         del d["actions"], d["rollout"]
+        d["world"] = dataclasses.asdict(self.world)
+        d["events"] = [e.to_json() for e in self.events]
         return d
 
 
@@ -93,7 +115,18 @@ class EvalReport:
     num_demos: int | None = None
     learning_seconds: float | None = None
     train_tasks: bool = False  # the tasks came from the train distribution
-    perturbation: Perturbation = NOMINAL
+    perturbation: Perturbation | WorldDistribution = NOMINAL  # the worlds (EvalSpec's)
+    model: ModelSpec = NOMINAL_MODEL
+    execution: ExecutionConfig = CLOSED_LOOP
+
+    @property
+    def worlds(self) -> WorldDistribution:
+        p = self.perturbation
+        return p if isinstance(p, WorldDistribution) else WorldDistribution.of(p)
+
+    @property
+    def mean_replans(self) -> float:
+        return statistics.fmean(o.replans for o in self.outcomes) if self.outcomes else 0.0
 
     @property
     def num_tasks(self) -> int:
@@ -148,7 +181,10 @@ class EvalReport:
             "label": self.label,
             "task_seed": self.task_seed,
             "train_tasks": self.train_tasks,
-            "perturbation": dataclasses.asdict(self.perturbation),
+            "perturbation": _physics_json(self.perturbation),
+            "worlds": self.worlds.label(),
+            "model": self.model.label(),
+            "execution": self.execution.mode,
             "num_demos": self.num_demos,
             "learning_seconds": self.learning_seconds,
             "planning": dataclasses.asdict(self.planning),
@@ -160,10 +196,21 @@ class EvalReport:
                 "mean_seconds": _finite_or_none(self.mean_seconds),
                 "mean_nodes_created": self.mean_nodes,
                 "median_sim_steps_per_step": _finite_or_none(self.median_sim_steps_per_step),
+                "mean_replans": self.mean_replans,
                 "failures": self.failures,
             },
             "tasks": [o.to_json() for o in self.outcomes],
         }
+
+
+def _physics_json(p: Perturbation | WorldDistribution) -> dict:
+    """A fixed physics as its fields (as results.json always had it); a distribution as
+    its spreads."""
+    if isinstance(p, Perturbation):
+        return dataclasses.asdict(p)
+    if p.fixed:
+        return dataclasses.asdict(p.draw(0))
+    return json.loads(p.to_json())
 
 
 def _finite_or_none(x: float) -> float | None:
@@ -172,7 +219,8 @@ def _finite_or_none(x: float) -> float | None:
 
 TABLE_HEADER = (
     "| Approach | Demos | Solved | Median time (s) | Mean time (s) | Nodes created "
-    "| Sim steps / plan step | Learning time (s) |\n|---|---:|---:|---:|---:|---:|---:|---:|"
+    "| Sim steps / plan step | Learning time (s) | Solved, 95 % CI | Replans / task |\n"
+    "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
 )
 
 
@@ -180,18 +228,27 @@ def table_row(report: EvalReport) -> str:
     def num(x: float | None, fmt: str) -> str:
         return "–" if x is None or not math.isfinite(x) else format(x, fmt)
 
+    low, high = wilson_interval(report.num_solved, report.num_tasks)
     return (
         f"| {report.label} | {report.num_demos if report.num_demos is not None else '–'} "
         f"| {report.num_solved}/{report.num_tasks} ({report.solved_percent:.1f}%) "
         f"| {num(report.median_seconds, '.2f')} | {num(report.mean_seconds, '.2f')} "
         f"| {report.mean_nodes:.1f} | {num(report.median_sim_steps_per_step, '.1f')} "
-        f"| {num(report.learning_seconds, '.1f')} |"
+        f"| {num(report.learning_seconds, '.1f')} "
+        f"| {100 * low:.1f}-{100 * high:.1f} | {report.mean_replans:.2f} |"
     )
+
+
+def conditions_line(reports: Sequence[EvalReport]) -> str:
+    """``World: moderate; model: nominal; execution: closed-loop`` (of the first report:
+    one evaluation runs every approach under the same conditions)."""
+    r = reports[0]
+    return f"World: {r.worlds.label()}; model: {r.model.label()}; execution: {r.execution.mode}"
 
 
 def markdown_table(reports: Sequence[EvalReport]) -> str:
     """One row per report; times and simulated steps per plan step are medians over
-    solved tasks, nodes are means over all tasks."""
+    solved tasks, nodes and replans are means over all tasks; the interval is Wilson's."""
     return "\n".join([TABLE_HEADER, *(table_row(r) for r in reports)]) + "\n"
 
 
@@ -211,14 +268,27 @@ def solve_task(
     timeout: float,
     rng: np.random.Generator,
     validate: bool = True,
+    world: Environment | None = None,
+    execution: ExecutionConfig | None = None,
+    physics: Perturbation = NOMINAL,
 ) -> TaskOutcome:
-    """Solve ``task`` once, time it and (optionally) validate the plan by re-simulation."""
+    """Solve ``task`` once, time it and (optionally) validate the plan by re-simulation.
+
+    ``env`` is the model the approach plans in. With a ``world`` (``task`` is then one
+    of its tasks) the approach acts there under ``execution`` (``Approach.solve_in_world``) and
+    validation re-simulates the world's actions in the world; without one the plan is
+    made and checked in ``env`` alone (``Approach.solve``). ``physics`` is the world's,
+    recorded with the outcome."""
     t0 = time.perf_counter()
-    result = approach.solve(task, rng, timeout)
+    if world is None:
+        world = env
+        result = approach.solve(task, rng, timeout)
+    else:
+        result = approach.solve_in_world(task, env, world, rng, timeout, execution or CLOSED_LOOP)
     seconds = time.perf_counter() - t0
     validated = None
     if result.success and validate:
-        validated = plan_reaches_goal(env, task, result.actions)
+        validated = plan_reaches_goal(world, task, result.actions)
     return TaskOutcome(
         index=index,
         solved=bool(result.success and validated is not False),
@@ -234,6 +304,9 @@ def solve_task(
         explanation=None if result.success else result.explanation,
         actions=result.actions,
         rollout=result.rollout if result.rollout is not None else Rollout(result.actions),
+        world=physics,
+        replans=result.replans,
+        rerefinements=result.rerefinements,
     )
 
 
@@ -249,19 +322,41 @@ _WORKER: dict[str, Any] = {}
 
 
 def _init_worker(spec: EvalSpec) -> None:
-    from bpns.env.registry import make_environment
+    base = make_environment(spec.env_name)
+    _WORKER.update(spec=spec, base=base, approaches={})
 
-    env = perturbed(make_environment(spec.env_name), spec.perturbation)
-    _WORKER.update(spec=spec, env=env, approach=approach_for(spec, env))
+
+def _approach(model: Environment, physics: Perturbation) -> Approach:
+    """The approach planning in ``model`` (built once per model physics in this worker)."""
+    cache: dict[Perturbation, Approach] = _WORKER["approaches"]
+    if physics not in cache:
+        if len(cache) >= 2:  # a model that knows each task's drawn world: one per task
+            cache.clear()
+        cache[physics] = approach_for(_WORKER["spec"], model)
+    return cache[physics]
 
 
 def _run_index(index: int) -> TaskOutcome:
     spec: EvalSpec = _WORKER["spec"]
-    env: Environment = _WORKER["env"]
-    task = env.task(index, spec.task_seed, spec.train_tasks)
+    base: Environment = _WORKER["base"]
+    physics = spec.worlds.draw(index)
+    world = perturbed(base, physics)
+    belief = spec.model.physics(physics)
+    model = perturbed(base, belief)
+    task = world.task(index, spec.task_seed, spec.train_tasks)
     rng = np.random.default_rng([spec.planner_seed, index])
-    approach: Approach = _WORKER["approach"]
-    return solve_task(approach, task, index, env, spec.planning.timeout, rng, spec.validate)
+    return solve_task(
+        _approach(model, belief),
+        task,
+        index,
+        model,
+        spec.planning.timeout,
+        rng,
+        spec.validate,
+        world=world,
+        execution=spec.execution,
+        physics=physics,
+    )
 
 
 def run_tasks(spec: EvalSpec, indices: Sequence[int], workers: int = 1) -> Iterator[TaskOutcome]:
@@ -304,4 +399,6 @@ def evaluate(
         learning_seconds=learning_seconds,
         train_tasks=spec.train_tasks,
         perturbation=spec.perturbation,
+        model=spec.model,
+        execution=spec.execution,
     )

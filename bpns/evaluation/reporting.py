@@ -169,7 +169,7 @@ def render_longest_solved(
     # holds a thousand loaded demonstrations fails with ENOMEM (`bpns run` at 1000 demos).
     with make_pool(1) as pool:
         n = pool.submit(
-            _render_task, env.name, report.perturbation, seed, train, outcome, camera, video, png
+            _render_task, env.name, outcome.world, seed, train, outcome, camera, video, png
         ).result()
     return SolvedVideo(video, png, n, report.label, outcome)
 
@@ -200,4 +200,5 @@ def _render_task(
         camera,
         png=png,
         physics=physics.label(),
+        events=rollout.events,
     )

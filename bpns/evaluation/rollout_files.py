@@ -5,11 +5,19 @@ reader; ``demo_<i>`` holds task i's initial state, actions, states, features, go
 MJCF), with attributes that say what the rows are:
 
 - root: ``kind`` = ``rollouts``, ``approach``, ``label``, ``task_seed``, ``train_tasks``,
-  ``perturbation`` (JSON of :class:`bpns.env.perturbations.Perturbation`: the physics the
-  rollouts ran under, needed to replay them exactly);
+  ``worlds`` (JSON of :class:`bpns.env.worlds.WorldDistribution`: the worlds the tasks
+  were drawn from), ``model`` (JSON of :class:`bpns.env.worlds.ModelSpec`),
+  ``execution`` (``closed-loop`` or ``open-loop``) and, when every task met the same
+  physics, ``perturbation`` (JSON of :class:`bpns.env.perturbations.Perturbation`);
 - per demo: ``task`` (the eval task index), ``solved`` (0/1), ``reason`` (why it
-  failed, "" when solved), ``plan`` (JSON list of :class:`bpns.execution.rollouts.PlanStep`)
-  and, for a failed task, ``explanation`` (JSON: what the planner tried, as results.json).
+  failed, "" when solved), ``plan`` (JSON list of :class:`bpns.execution.rollouts.PlanStep`),
+  ``physics`` (JSON of the task's own world: what replay needs to be exact), ``events``
+  (JSON list of :class:`bpns.execution.rollouts.Event`: the monitor's divergences and
+  replans), ``replans`` and, for a failed task, ``explanation``
+  (JSON: what the planner tried, as in results.json).
+
+Files written before per-task worlds carry no ``physics`` per row: their root
+``perturbation`` is every row's.
 
 For a failed task the rows are the attempt that got furthest (bilevel planning: the
 deepest refined prefix, then the failed sample after it, with its failure reason), so
@@ -33,9 +41,10 @@ from bpns.data.datasets import (
 )
 from bpns.data.demos import ReplayReport, replay
 from bpns.env.environment import Environment, perturbed
-from bpns.env.perturbations import Perturbation, PerturbationError
+from bpns.env.perturbations import NOMINAL, Perturbation, PerturbationError
+from bpns.env.worlds import NOMINAL_WORLD, WORLD_MODEL, ModelSpec, WorldDistribution
 from bpns.evaluation.evaluate import EvalReport, TaskOutcome
-from bpns.execution.rollouts import PlanStep, Rollout
+from bpns.execution.rollouts import Event, PlanStep, Rollout
 from bpns.structs import Demonstration, Task
 
 KIND = "rollouts"
@@ -54,12 +63,12 @@ def demonstration_of(env: Environment, task: Task, actions: np.ndarray) -> Demon
 
 
 def save_rollouts(path: str | os.PathLike, env: Environment, report: EvalReport) -> int:
-    """Every task of ``report`` with what its approach executed, atomically; ``env`` is
-    the nominal environment (the report's perturbation is applied here)."""
-    world = perturbed(env, report.perturbation)
+    """Every task of ``report`` with what its approach executed, re-simulated in the
+    task's own world, atomically; ``env`` is the nominal environment."""
 
     def items() -> Iterator[tuple[Demonstration, dict]]:
         for o in report.outcomes:
+            world = perturbed(env, o.world)
             task = world.task(o.index, report.task_seed, report.train_tasks)
             demo = demonstration_of(world, task, _rollout(o).actions)
             yield demo, _outcome_attrs(o)
@@ -70,9 +79,13 @@ def save_rollouts(path: str | os.PathLike, env: Environment, report: EvalReport)
         "label": report.label,
         "task_seed": report.task_seed,
         "train_tasks": int(report.train_tasks),
-        "perturbation": report.perturbation.to_json(),
+        "worlds": report.worlds.to_json(),
+        "model": report.model.to_json(),
+        "execution": report.execution.mode,
     }
-    return write_demonstrations(path, world, items(), root)
+    if report.worlds.fixed:
+        root["perturbation"] = report.worlds.draw(0).to_json()
+    return write_demonstrations(path, env, items(), root)
 
 
 def _rollout(o: TaskOutcome) -> Rollout:
@@ -80,11 +93,15 @@ def _rollout(o: TaskOutcome) -> Rollout:
 
 
 def _outcome_attrs(o: TaskOutcome) -> dict:
+    rollout = _rollout(o)
     return {
         "task": o.index,
         "solved": int(o.solved),
         "reason": "" if o.solved else str(o.reason),
-        "plan": json.dumps([s.to_json() for s in _rollout(o).steps]),
+        "plan": json.dumps([s.to_json() for s in rollout.steps]),
+        "physics": o.world.to_json(),
+        "events": json.dumps([e.to_json() for e in rollout.events]),
+        "replans": int(o.replans),
         # a failed task: what the planner tried (bpns view shows it)
         **({"explanation": json.dumps(o.explanation)} if o.explanation else {}),
     }
@@ -99,6 +116,9 @@ class RolloutInfo:
     solved: bool
     reason: str
     steps: tuple[PlanStep, ...]
+    physics: Perturbation = NOMINAL  # the world it executed in
+    events: tuple[Event, ...] = ()
+    replans: int = 0
 
 
 @dataclass(frozen=True)
@@ -108,8 +128,11 @@ class RolloutsFile:
     path: str
     approach: str
     label: str
-    perturbation: Perturbation
+    perturbation: Perturbation  # every row's physics when they share one (older files)
     rows: tuple[RolloutInfo, ...]
+    worlds: WorldDistribution = NOMINAL_WORLD
+    model: ModelSpec = WORLD_MODEL
+    execution: str = "open-loop"
 
     @classmethod
     def read(cls, path: str | os.PathLike) -> RolloutsFile:
@@ -118,19 +141,25 @@ class RolloutsFile:
             raise DatasetError(f"{path}: not a rollouts file (written by `bpns eval --out`)")
         try:
             perturbation = Perturbation.from_json(str(root.get("perturbation", "{}")))
-            rows = tuple(
-                RolloutInfo(
-                    i,
-                    int(d["task"]),
-                    bool(d["solved"]),
-                    str(d["reason"]),
-                    tuple(PlanStep.from_json(s) for s in json.loads(str(d["plan"]))),
-                )
-                for i, d in enumerate(demos)
+            worlds = (
+                WorldDistribution.from_json(str(root["worlds"]))
+                if "worlds" in root
+                else WorldDistribution.of(perturbation)
             )
+            model = ModelSpec.from_json(str(root["model"])) if "model" in root else WORLD_MODEL
+            rows = tuple(_row(i, d, perturbation) for i, d in enumerate(demos))
         except (KeyError, TypeError, ValueError, PerturbationError) as err:
             raise DatasetError(f"{path}: damaged rollout records: {err}") from None
-        return cls(str(path), str(root["approach"]), str(root["label"]), perturbation, rows)
+        return cls(
+            str(path),
+            str(root["approach"]),
+            str(root["label"]),
+            perturbation,
+            rows,
+            worlds,
+            model,
+            str(root.get("execution", "open-loop")),
+        )
 
     def row(self, task: int) -> RolloutInfo:
         for r in self.rows:
@@ -139,14 +168,29 @@ class RolloutsFile:
         tasks = ", ".join(str(r.task) for r in self.rows)
         raise DatasetError(f"{self.path}: has no rollout of task {task} (tasks: {tasks})")
 
-    def environment(self, env: Environment) -> Environment:
-        """``env`` under the physics the rollouts ran under."""
-        return perturbed(env, self.perturbation)
+    def environment(self, env: Environment, row: RolloutInfo | None = None) -> Environment:
+        """``env`` under the physics ``row`` ran under (the file's, without a row)."""
+        return perturbed(env, self.perturbation if row is None else row.physics)
 
     def demonstration(self, env: Environment, row: RolloutInfo) -> Demonstration:
-        """Row ``row``'s demonstration, loaded into ``self.environment(env)``."""
-        (demo,) = load_demonstrations(self.path, self.environment(env), [row.position])
+        """Row ``row``'s demonstration, loaded into its own world."""
+        (demo,) = load_demonstrations(self.path, self.environment(env, row), [row.position])
         return demo
+
+
+def _row(position: int, d: dict, fallback: Perturbation) -> RolloutInfo:
+    physics = Perturbation.from_json(str(d["physics"])) if "physics" in d else fallback
+    events = tuple(Event.from_json(e) for e in json.loads(str(d.get("events", "[]"))))
+    return RolloutInfo(
+        position,
+        int(d["task"]),
+        bool(d["solved"]),
+        str(d["reason"]),
+        tuple(PlanStep.from_json(s) for s in json.loads(str(d["plan"]))),
+        physics,
+        events,
+        int(d.get("replans", 0)),
+    )
 
 
 def is_rollouts_file(path: str | os.PathLike) -> bool:
@@ -195,11 +239,11 @@ class RolloutReplay:
 def replay_rollouts(
     env: Environment, path: str | os.PathLike, limit: int | None = None
 ) -> RolloutReplay:
-    """Re-simulate the first ``limit`` (default: all) rollouts of ``path`` (``env``
-    nominal: the file's perturbation is applied)."""
+    """Re-simulate the first ``limit`` (default: all) rollouts of ``path``, each in its
+    own world (``env`` nominal: every row's physics is applied)."""
     f = RolloutsFile.read(path)
-    world = f.environment(env)
     rows = f.rows[: limit or len(f.rows)]
-    demos = load_demonstrations(path, world, [r.position for r in rows])
-    checked = tuple((r, replay(world, d, r.position)) for r, d in zip(rows, demos, strict=True))
-    return RolloutReplay(f.perturbation.label(), checked)
+    checked = tuple(
+        (r, replay(f.environment(env, r), f.demonstration(env, r), r.position)) for r in rows
+    )
+    return RolloutReplay(f.worlds.label(), checked)

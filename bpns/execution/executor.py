@@ -136,6 +136,7 @@ class SkillExecutor:
         self.deadline = deadline
         self.sim_steps = 0
         self.last_actions: list[np.ndarray] = []
+        self.last_states: list[State] = []  # the states those actions led to
         self.last_subgoal: np.ndarray | None = None
         self.observe = observation_of(env)
         self.dead_end = env.capabilities.dead_end if config.end_at_dead_end else None
@@ -172,9 +173,13 @@ class SkillExecutor:
         state: State,
         test: CompletionTest,
         used_steps: int = 0,
+        keep: Sequence[GroundAtom] = (),
+        keep_for: int = 1,
     ) -> Executed | FailureReason:
         """Roll ``skill``'s policy out from ``state`` towards ``subgoal`` until ``test``
-        holds; ``used_steps`` actions of the task's horizon are already spent."""
+        holds; ``used_steps`` actions of the task's horizon are already spent. ``keep``:
+        atoms that must go on holding (an execution monitor's); one that stays false
+        ``keep_for`` steps in a row ends the execution (``ATOM_LOST``)."""
         must_hold = [(a.predicate.classifier, a.objects) for a in test.must_hold]
         must_not_hold = [(a.predicate.classifier, a.objects) for a in test.must_not_hold]
         policy = skill.policy
@@ -185,11 +190,13 @@ class SkillExecutor:
         observe = self.observe
         dead_end = self.dead_end
         actions: list[np.ndarray] = []
-        self.last_actions, self.last_subgoal = actions, subgoal
         states: list[State] = []
+        self.last_actions, self.last_states, self.last_subgoal = actions, states, subgoal
         feats = state_features(state)
         unchanged = 0
         watch = self.contact_values(state) if self.contact_watch else None
+        kept = [(a.predicate.classifier, a.objects) for a in keep]
+        lost = 0
         limit = self.config.max_skill_horizon
         if skill.horizon is not None:
             limit = min(limit, skill.horizon)
@@ -215,6 +222,10 @@ class SkillExecutor:
                 return FailureReason.DEAD_END
             if watch is not None and self.contact_values(state) != watch:
                 return FailureReason.CONTACT_CHANGED
+            if kept:
+                lost = lost + 1 if not all(c(state, o) for c, o in kept) else 0
+                if lost >= keep_for:
+                    return FailureReason.ATOM_LOST
             # ``feats`` is an anchor: the state where the world last stood still. Comparing
             # with it, not with the previous step, also catches a limit cycle (an arm
             # chattering at its reach limit moves every step but goes nowhere).

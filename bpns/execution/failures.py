@@ -17,6 +17,10 @@ class FailureReason(str, enum.Enum):
     EXHAUSTED = "exhausted"  # one abstract plan: every sample of its first step failed
     SET_ASIDE = "set_aside"  # one abstract plan: a step failed from too many arrivals
     NO_SKILL = "no_skill"  # a metacontroller found no ground skill to execute
+    # executing in a world that differs from the planner's model
+    GOAL_NOT_REACHED = "goal_not_reached"  # a plan replayed open loop missed the goal
+    REPLAN_BUDGET = "replan_budget"  # closed loop: the world diverged more often than allowed
+    ATOM_LOST = "atom_lost"  # closed loop: an atom the rest of the plan needs stopped holding
     # one execution of a skill (or of a policy acting every step)
     SAMPLER_ERROR = "sampler_error"  # the subgoal sampler raised
     SAMPLER_NONFINITE = "sampler_nonfinite"  # ... or returned NaN/inf
@@ -45,6 +49,12 @@ MEANING: dict[FailureReason, str] = {
     FailureReason.SET_ASIDE: "one step failed every sample from several different arrivals: "
     "the plan was set aside for the other abstract plans (refined again after them)",
     FailureReason.NO_SKILL: "no ground skill was left to execute",
+    FailureReason.GOAL_NOT_REACHED: "the plan found in the model, replayed open loop in the "
+    "world, did not reach the goal",
+    FailureReason.REPLAN_BUDGET: "the world diverged from the plan more often than the "
+    "replan budget allows",
+    FailureReason.ATOM_LOST: "an atom the rest of the plan relies on stopped holding while "
+    "the skill ran (e.g. the held object slipped)",
     FailureReason.SAMPLER_ERROR: "the subgoal sampler raised",
     FailureReason.SAMPLER_NONFINITE: "the subgoal sampler returned NaN/inf",
     FailureReason.NO_SUBGOAL: "the sampler had no subgoal worth simulating (out of reach or "

@@ -56,12 +56,33 @@ class PlanStep:
         )
 
 
+@dataclass(frozen=True)
+class Event:
+    """Something an execution monitor saw or did, before action ``at`` of a rollout:
+    ``kind`` is ``diverged``, ``skill_failed``, ``atom_lost``, ``replanned``,
+    ``rerefined`` or ``replan_failed``; ``text`` says it for people ("replan 1: expected
+    Holding(block0) did not hold")."""
+
+    at: int
+    kind: str
+    text: str
+
+    def to_json(self) -> dict:
+        return {"at": self.at, "kind": self.kind, "text": self.text}
+
+    @classmethod
+    def from_json(cls, d: dict) -> Event:
+        return cls(int(d["at"]), str(d["kind"]), str(d["text"]))
+
+
 @dataclass(frozen=True, eq=False)
 class Rollout:
-    """Executed ``actions`` (k x action_dim) and the skill executions they consist of."""
+    """Executed ``actions`` (k x action_dim), the skill executions they consist of and
+    what an execution monitor saw on the way (closed-loop execution only)."""
 
     actions: np.ndarray
     steps: tuple[PlanStep, ...] = ()
+    events: tuple[Event, ...] = ()
 
     @property
     def progress(self) -> tuple[int, int]:
@@ -72,7 +93,9 @@ class Rollout:
 Executed = tuple[GroundOperator, "np.ndarray | None", Sequence[np.ndarray], str]
 
 
-def rollout_of(executions: Sequence[Executed], action_dim: int) -> Rollout:
+def rollout_of(
+    executions: Sequence[Executed], action_dim: int, events: Sequence[Event] = ()
+) -> Rollout:
     """A rollout from (ground operator, subgoal, actions, outcome) per execution."""
     steps, actions = [], []
     for op, subgoal, acts, outcome in executions:
@@ -81,7 +104,7 @@ def rollout_of(executions: Sequence[Executed], action_dim: int) -> Rollout:
         steps.append(PlanStep(op.operator.name, objects, sub, len(actions), outcome))
         actions.extend(acts)
     flat = np.array(actions, dtype=np.float64).reshape(len(actions), action_dim)
-    return Rollout(flat, tuple(steps))
+    return Rollout(flat, tuple(steps), tuple(events))
 
 
 def further(a: Rollout | None, b: Rollout | None) -> Rollout | None:
@@ -104,6 +127,17 @@ def step_captions(steps: Sequence[PlanStep], num_states: int) -> list[str]:
         while k + 1 < len(steps) and steps[k + 1].start <= action:
             k += 1
         out.append(f"{k + 1}/{len(steps)} {steps[k].label}")
+    return out
+
+
+def event_captions(captions: Sequence[str], events: Sequence[Event], hold: int = 40) -> list[str]:
+    """``captions`` with each monitor event's text added below, from the state where it
+    happened for ``hold`` states (2 s at 20 Hz), so a video shows why it replanned."""
+    out = list(captions)
+    for i in range(len(out)):
+        current = [e for e in events if e.at <= max(0, i - 1) < e.at + hold]
+        if current:
+            out[i] = f"{out[i]}\n{current[-1].text}"
     return out
 
 

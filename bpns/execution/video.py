@@ -15,7 +15,13 @@ from PIL import Image, ImageDraw, ImageFont
 from bpns.atomic import atomic_path
 from bpns.env.environment import Environment
 from bpns.errors import BpnsError
-from bpns.execution.rollouts import PlanStep, outcome_caption, step_captions
+from bpns.execution.rollouts import (
+    Event,
+    PlanStep,
+    event_captions,
+    outcome_caption,
+    step_captions,
+)
 from bpns.structs import State
 
 
@@ -204,9 +210,12 @@ def render_rollout(
     height: int = 480,
     png: str | os.PathLike | None = None,
     physics: str = "",
+    events: Sequence[Event] = (),
 ) -> int:
-    """A rollout's video: each frame captioned with its skill and objects, the last held
-    with the outcome or the failure reason (``physics``: the perturbation, if any)."""
+    """A rollout's video: each frame captioned with its skill and objects (and, for a
+    while after each, the execution monitor's events: "replan 1: expected Holding(block0)
+    did not hold"), the last held with the outcome or the failure reason (``physics``:
+    the perturbation, if any)."""
     return render_video(
         env,
         states,
@@ -215,6 +224,6 @@ def render_rollout(
         width,
         height,
         png,
-        captions=step_captions(steps, len(states)),
+        captions=event_captions(step_captions(steps, len(states)), events),
         final_caption=outcome_caption(solved, reason, steps, len(states) - 1, physics),
     )

@@ -23,17 +23,8 @@ from bpns.env.abstraction import ground_atoms
 from bpns.env.environment import Environment, perturbed
 from bpns.evaluation.evaluate import EvalReport, TaskOutcome
 from bpns.evaluation.rollout_files import RolloutsFile, demonstration_of, is_rollouts_file
-from bpns.execution.rollouts import PlanStep, Rollout
+from bpns.execution.rollouts import Event, PlanStep, Rollout
 from bpns.structs import Demonstration, GroundAtom
-
-
-@dataclass(frozen=True)
-class EpisodeEvent:
-    """What an execution monitor saw or did before action ``at`` (e.g. ``replanned``)."""
-
-    at: int
-    kind: str
-    text: str
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,7 +38,7 @@ class Episode:
     steps: tuple[PlanStep, ...] = ()
     solved: bool | None = None
     reason: str = ""
-    events: tuple[EpisodeEvent, ...] = ()
+    events: tuple[Event, ...] = ()
     explanation: Mapping | None = None
     approach: str = ""
 
@@ -80,35 +71,26 @@ def read_episode(
     if task is None:
         raise DatasetError(f"{path}: a rollouts file: say which task with --task I")
     row = rollouts.row(task)
-    world = rollouts.environment(env)
-    (d,) = load_demonstrations(path, world, [row.position])
+    d = rollouts.demonstration(env, row)  # in the task's own world
     _, rows = read_attributes(path)
-    extra = rows[row.position]
     try:
-        events = _events(json.loads(str(extra.get("events", "[]"))))
-        explanation = json.loads(str(extra["explanation"])) if "explanation" in extra else None
-    except (TypeError, ValueError, KeyError) as err:
-        raise DatasetError(f"{path}: task {task}: damaged events or explanation: {err}") from None
+        explanation = json.loads(str(rows[row.position].get("explanation", "null")))
+    except ValueError as err:
+        raise DatasetError(f"{path}: task {task}: damaged explanation: {err}") from None
     if explanation is None and not row.solved:
         explanation = _explanation_beside(Path(path), rollouts.approach, task)
     return Episode(
-        world,
+        rollouts.environment(env, row),
         d,
         f"{env.name} {rollouts.label} task {task}",
         task,
         row.steps,
         row.solved,
         row.reason,
-        events,
+        row.events,
         explanation,
         rollouts.approach,
     )
-
-
-def _events(records: object) -> tuple[EpisodeEvent, ...]:
-    if not isinstance(records, list):
-        raise ValueError("events must be a JSON list")
-    return tuple(EpisodeEvent(int(e["at"]), str(e["kind"]), str(e["text"])) for e in records)
 
 
 def _explanation_beside(path: Path, approach: str, task: int) -> Mapping | None:
@@ -123,14 +105,11 @@ def _explanation_beside(path: Path, approach: str, task: int) -> Mapping | None:
 
 
 def episode_of_outcome(env: Environment, report: EvalReport, outcome: TaskOutcome) -> Episode:
-    """``outcome``'s rollout re-simulated (exactly) from its task under the report's
-    physics: what its rollouts file row holds, without reading it back."""
-    world = perturbed(env, report.perturbation)
+    """``outcome``'s rollout re-simulated (exactly) from its task in the world it ran
+    in: what its rollouts file row holds, without reading it back."""
+    world = perturbed(env, outcome.world)
     task = world.task(outcome.index, report.task_seed, report.train_tasks)
     rollout = outcome.rollout if outcome.rollout is not None else Rollout(outcome.actions)
-    events = tuple(
-        EpisodeEvent(int(e.at), str(e.kind), str(e.text)) for e in getattr(rollout, "events", ())
-    )
     return Episode(
         world,
         demonstration_of(world, task, rollout.actions),
@@ -139,7 +118,7 @@ def episode_of_outcome(env: Environment, report: EvalReport, outcome: TaskOutcom
         rollout.steps,
         outcome.solved,
         "" if outcome.solved else str(outcome.reason),
-        events,
+        rollout.events,
         outcome.explanation,
         report.approach,
     )

@@ -18,7 +18,7 @@ from pathlib import Path
 from urllib.parse import quote
 
 from bpns.atomic import atomic_path
-from bpns.evaluation.evaluate import EvalReport, TaskOutcome
+from bpns.evaluation.evaluate import EvalReport, TaskOutcome, conditions_line
 from bpns.evaluation.rollout_files import rollouts_name
 from bpns.execution.rollouts import REACHED
 from bpns.inspect.explain import explanation_lines
@@ -68,6 +68,7 @@ def write_page(out: Path, reports: Sequence[EvalReport], table: str, media: Page
     path = out / PAGE
     body = [
         "<h1>" + _esc(_title(reports)) + "</h1>",
+        f"<p>{_esc(conditions_line(reports))}</p>",
         _summary_table(reports),
         '<p class="toolbar"><label><input type="checkbox" id="only-failed" '
         'onchange="showOnlyFailed(this.checked)"> show failed tasks only</label></p>',
@@ -94,10 +95,7 @@ def _esc(text: object) -> str:
 def _title(reports: Sequence[EvalReport]) -> str:
     first = reports[0]
     kind = "train" if first.train_tasks else "eval"
-    physics = first.perturbation.label()
-    where = "" if physics == "nominal" else f", physics {physics}"
-    tasks = f"{first.num_tasks} {kind} tasks (seed {first.task_seed}{where})"
-    return f"bpns evaluation: {first.env}, {tasks}"
+    return f"bpns evaluation: {first.env}, {first.num_tasks} {kind} tasks (seed {first.task_seed})"
 
 
 def _num(x: float | None, fmt: str) -> str:
@@ -158,6 +156,13 @@ def _task_row(report: EvalReport, o: TaskOutcome, media: PageMedia) -> str:
         lines = "\n".join(explanation_lines(o.explanation))
         outcome += (
             f"<details><summary>what the planner tried</summary><pre>{_esc(lines)}</pre></details>"
+        )
+    events = o.rollout.events if o.rollout is not None else ()
+    if events:
+        text = "\n".join(f"before action {e.at}: {e.kind}: {e.text}" for e in events)
+        outcome += (
+            f"<details><summary>execution monitor: {len(events)} events, {o.replans} "
+            f"replans</summary><pre>{_esc(text)}</pre></details>"
         )
     video = '<span class="note">not rendered</span>'
     if key in media.videos:

@@ -11,10 +11,12 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from bpns.acting.config import CLOSED_LOOP, ExecutionConfig
 from bpns.approaches import NoOracleSkillsError, SkillSource, get_approach
 from bpns.baselines.learn import saved_baseline_seconds
 from bpns.env.environment import Environment
 from bpns.env.perturbations import NOMINAL, Perturbation
+from bpns.env.worlds import NOMINAL_MODEL, ModelSpec, WorldDistribution
 from bpns.errors import BpnsError
 from bpns.evaluation.evaluate import EvalReport, EvalSpec, TaskOutcome, evaluate
 from bpns.learning.artifacts import ArtifactError
@@ -43,7 +45,9 @@ class EvalRequest:
     train: bool = False
     validate: bool = True
     workers: int = 1
-    perturbation: Perturbation = NOMINAL
+    perturbation: Perturbation | WorldDistribution = NOMINAL  # the world, fixed or per task
+    model: ModelSpec = NOMINAL_MODEL  # what the planner simulates
+    execution: ExecutionConfig = CLOSED_LOOP
 
 
 def check_approaches(
@@ -95,6 +99,8 @@ def evaluate_approaches(
             train_tasks=request.train,
             validate=request.validate,
             perturbation=request.perturbation,
+            model=request.model,
+            execution=request.execution,
         )
         learning_seconds = None
         if learns and stats is not None and skills_dir is not None:

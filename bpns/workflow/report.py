@@ -10,7 +10,7 @@ from pathlib import Path
 
 from bpns.env.environment import Environment
 from bpns.errors import BpnsError
-from bpns.evaluation.evaluate import EvalReport, markdown_table
+from bpns.evaluation.evaluate import EvalReport, conditions_line, markdown_table
 from bpns.evaluation.reporting import SolvedVideo, render_longest_solved, write_results
 from bpns.execution.video import VideoError
 from bpns.workflow.report_page import DEFAULT_PAGE, PageRequest, PageWritten, write_eval_page
@@ -58,7 +58,7 @@ def report_evaluation(
     plan of the first approach that solved anything; ``out/report.html`` with the videos
     ``page`` asks for (:mod:`bpns.workflow.report_page`). Raises ``VideoError`` when rendering
     fails and :class:`TaskNotEvaluatedError` for a task not evaluated."""
-    table = markdown_table(reports)
+    table = conditions_line(reports) + "\n\n" + markdown_table(reports)
     written = None
     if out is not None:
         write_results(out, reports, table, env)

@@ -1,0 +1,60 @@
+"""How a plan made in the model meets the world (``bpns eval --execution``)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from bpns.errors import BpnsError
+
+MODES = ("closed-loop", "open-loop")
+
+
+class ExecutionConfigError(BpnsError, ValueError):
+    """A setting of :class:`ExecutionConfig` out of its range."""
+
+
+@dataclass(frozen=True)
+class ExecutionConfig:
+    """closed_loop:   execute skill by skill in the world, each policy re-queried every
+                      control step on the world's observation, monitored, and replan on
+                      divergence (False: replay the model's plan open loop, as the paper).
+    max_replans:      divergences tolerated per task before it fails (``replan_budget``).
+    rerefine_atol:    at a skill boundary where the world's features left the model's
+                      prediction by more than this (feature units: metres, radians), the
+                      rest of the plan is refined again from the world's state, so later
+                      subgoals fit where things really are; None: only on a divergence.
+    watch_atoms:      end a skill the moment an atom the rest of the plan needs (and the
+                      model's rollout kept) stops holding for the environment's
+                      ``contact_settle_steps``, instead of at its horizon.
+    """
+
+    closed_loop: bool = True
+    max_replans: int = 10
+    rerefine_atol: float | None = 0.01
+    watch_atoms: bool = True
+
+    def __post_init__(self) -> None:
+        if isinstance(self.max_replans, bool) or not isinstance(self.max_replans, int):
+            raise ExecutionConfigError(
+                f"max_replans must be a whole number, got {self.max_replans!r}"
+            )
+        if self.max_replans < 0:
+            raise ExecutionConfigError(f"max_replans must be >= 0, got {self.max_replans}")
+        atol = self.rerefine_atol
+        if atol is not None and not (0.0 < atol < math.inf):
+            raise ExecutionConfigError(f"rerefine_atol must be finite and > 0, got {atol}")
+
+    @property
+    def mode(self) -> str:
+        return MODES[0] if self.closed_loop else MODES[1]
+
+    @classmethod
+    def of_mode(cls, mode: str, **fields: object) -> ExecutionConfig:
+        if mode not in MODES:
+            raise ExecutionConfigError(f"unknown execution {mode!r}; known: {', '.join(MODES)}")
+        return cls(closed_loop=mode == MODES[0], **fields)  # type: ignore[arg-type]
+
+
+OPEN_LOOP = ExecutionConfig(closed_loop=False)
+CLOSED_LOOP = ExecutionConfig()

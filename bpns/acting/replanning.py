@@ -1,0 +1,323 @@
+"""Bilevel planning in the model, execution in the world, repair on divergence.
+
+:class:`ClosedLoopPlanner` plans from the world's observed state in the model
+(:func:`bpns.planning.plan`), then executes the plan step by step in the world
+(:class:`bpns.acting.world.WorldRun`). At each skill boundary the monitor
+(:mod:`bpns.acting.monitor`) checks the atoms the rest of the plan needs; a skill that
+fails in the world, or loses such an atom while it runs, or a boundary that lacks one, is
+a divergence. A divergence is repaired from the world's current state: first the rest of
+the same abstract plan, from the last step whose needed atoms hold (refinement only, no
+search), then a new bilevel plan; at most ``max_replans`` times, within the task's
+deadline. Where the world's features left the model's prediction by more than
+``rerefine_atol`` at a boundary, the rest of the plan is refined again from where things
+really are (new subgoals, same abstract plan).
+
+A step whose world start state is bit-identical to the model's, under the very same
+physics, takes over the model's segment instead of simulating it again: ``f`` is
+deterministic, so the world would reproduce it exactly (with a nominal world and model,
+closed-loop execution costs nothing).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bpns.acting.config import ExecutionConfig
+from bpns.acting.monitor import atoms_text, kept_atoms, necessary_atoms, repair_point
+from bpns.acting.world import WorldRun
+from bpns.env.abstraction import abstract
+from bpns.env.environment import Environment, adopt_state
+from bpns.execution.executor import (
+    CompletionTest,
+    ExecutionTimeout,
+    RolloutConfig,
+    completion_test,
+)
+from bpns.execution.failures import FailureReason
+from bpns.execution.rollouts import Rollout
+from bpns.planning.bilevel import PlanningStats, PlanResult, plan
+from bpns.planning.config import PlanningConfig
+from bpns.planning.refinement import RefinementResult, refine
+from bpns.planning.search import AbstractPlan
+from bpns.structs import GroundAtom, GroundOperator, Skill, State, Task
+
+
+@dataclass(frozen=True, eq=False)
+class PlannedStep:
+    """One refined step: the skill, its ground operator and subgoal, and the model's
+    segment (``states[0]`` its start, then the state after each of ``actions``)."""
+
+    skill: Skill
+    op: GroundOperator
+    subgoal: np.ndarray
+    test: CompletionTest
+    actions: tuple[np.ndarray, ...]
+    states: tuple[State, ...]
+
+
+def planned_steps(
+    skills: Sequence[Skill],
+    operators: Sequence[GroundOperator],
+    tests: Sequence[CompletionTest],
+    result: PlanResult | RefinementResult,
+) -> list[PlannedStep]:
+    """The steps of a successful plan or refinement, with their model segments."""
+    starts = (*result.step_starts, len(result.actions))
+    return [
+        PlannedStep(
+            skill,
+            op,
+            subgoal,
+            test,
+            tuple(result.actions[a:b]),
+            tuple(result.states[a : b + 1]),
+        )
+        for skill, op, subgoal, test, a, b in zip(
+            skills, operators, result.subgoals, tests, starts[:-1], starts[1:], strict=True
+        )
+    ]
+
+
+@dataclass
+class ClosedLoopStats:
+    """What the closed loop cost, summed over every plan it made."""
+
+    nodes_created: int = 0
+    abstract_plans: int = 0
+    samples: int = 0
+    model_steps: int = 0  # control steps simulated in the model (planning)
+    replans: int = 0  # divergences repaired
+    rerefinements: int = 0  # boundaries where the rest was refined again (deviation)
+    furthest: Rollout | None = field(default=None, repr=False)
+    explanation: dict | None = field(default=None, repr=False)
+
+
+@dataclass(frozen=True, eq=False)
+class ClosedLoopResult:
+    success: bool
+    reason: FailureReason | None
+    world: WorldRun
+    stats: ClosedLoopStats
+    skeleton: tuple[str, ...] = ()  # the ground skills executed, in order
+
+
+class ClosedLoopPlanner:
+    """Plans with ``skills`` in ``model`` (the planner's simulator) and executes in the
+    world a :class:`WorldRun` carries; see the module docstring."""
+
+    def __init__(
+        self,
+        skills: Sequence[Skill],
+        model: Environment,
+        config: PlanningConfig,
+        execution: ExecutionConfig,
+        explain: Callable[[PlanningStats], dict] | None = None,
+    ) -> None:
+        self.by_operator = {s.operator: s for s in skills}
+        self.skills = list(skills)
+        self.model = model
+        self.config = config
+        self.execution = execution
+        self.explain = explain  # PlanningStats -> JSON explanation of a failed plan
+
+    # -- planning in the model ------------------------------------------------------
+    def _model_task(self, world: WorldRun) -> Task:
+        task = world.task
+        return Task(adopt_state(self.model, world.state), task.goal, task.horizon - world.used)
+
+    def _plan(
+        self, world: WorldRun, rng: np.random.Generator, deadline: float, stats: ClosedLoopStats
+    ) -> list[PlannedStep] | FailureReason:
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            return FailureReason.TIMEOUT
+        config = dataclasses.replace(self.config, timeout=remaining)
+        result = plan(self._model_task(world), self.skills, self.model, config, rng)
+        s = result.stats
+        stats.nodes_created += s.nodes_created
+        stats.abstract_plans += s.abstract_plans_tried
+        stats.samples += s.samples_drawn
+        stats.model_steps += s.sim_steps
+        if not result.success:
+            if result.furthest is not None and stats.furthest is None:
+                stats.furthest = result.furthest
+            if self.explain is not None and stats.explanation is None:
+                stats.explanation = self.explain(s)
+            return result.reason or FailureReason.REFINEMENT_FAILED
+        skeleton = result.skeleton
+        assert skeleton is not None
+        tests = [
+            _test(op, after)
+            for op, after in zip(skeleton.operators, skeleton.atoms[1:], strict=True)
+        ]
+        return planned_steps(result.skills, skeleton.operators, tests, result)
+
+    def _refine_rest(
+        self,
+        world: WorldRun,
+        operators: Sequence[GroundOperator],
+        rng: np.random.Generator,
+        deadline: float,
+        stats: ClosedLoopStats,
+    ) -> list[PlannedStep] | None:
+        """The same abstract plan ``operators`` refined again from the world's state."""
+        task = self._model_task(world)
+        atoms = [abstract(task.init, self.model.predicates)]
+        for op in operators:
+            if not op.applicable(atoms[-1]):
+                return None
+            atoms.append(op.apply(atoms[-1]))
+        skeleton = AbstractPlan(tuple(operators), tuple(atoms), float(len(operators)))
+        skills = [self.by_operator[op.operator] for op in operators]
+        config = dataclasses.replace(self.config, timeout=max(0.0, deadline - time.monotonic()))
+        try:
+            ref = refine(skeleton, skills, task, self.model, config, rng, deadline)
+        except ExecutionTimeout:
+            return None
+        stats.samples += ref.stats.samples
+        stats.model_steps += ref.stats.sim_steps
+        if not ref.success:
+            return None
+        tests = [_test(op, after) for op, after in zip(operators, atoms[1:], strict=True)]
+        return planned_steps(skills, operators, tests, ref)
+
+    # -- the loop -------------------------------------------------------------------
+    def run(self, world: WorldRun, rng: np.random.Generator, deadline: float) -> ClosedLoopResult:
+        stats = ClosedLoopStats()
+        executed: list[str] = []
+        try:
+            return self._loop(world, rng, deadline, stats, executed)
+        except ExecutionTimeout:
+            return ClosedLoopResult(False, FailureReason.TIMEOUT, world, stats, tuple(executed))
+
+    def _loop(
+        self,
+        world: WorldRun,
+        rng: np.random.Generator,
+        deadline: float,
+        stats: ClosedLoopStats,
+        executed: list[str],
+    ) -> ClosedLoopResult:
+        def failed(reason: FailureReason) -> ClosedLoopResult:
+            return ClosedLoopResult(False, reason, world, stats, tuple(executed))
+
+        steps = self._plan(world, rng, deadline, stats)
+        if isinstance(steps, FailureReason):
+            return failed(steps)
+        needed = necessary_atoms([s.op for s in steps], world.task.goal)
+        i = 0
+        while not world.goal_holds():
+            problem = None
+            if i >= len(steps):
+                problem = ("diverged", "the plan ended but the goal does not hold")
+            else:
+                problem = self._execute(world, steps[i], needed[i + 1])
+                executed.append(str(steps[i].op))
+            if problem is None:
+                missing = needed[i + 1] - world.atoms()
+                if missing:
+                    problem = ("diverged", f"expected {atoms_text(missing)} did not hold")
+            if problem is None:
+                i += 1
+                if i < len(steps) and self._deviated(world.state, steps[i - 1].states[-1]):
+                    rest = self._refine_rest(world, [s.op for s in steps[i:]], rng, deadline, stats)
+                    if rest is not None:
+                        stats.rerefinements += 1
+                        world.event("rerefined", f"refined the last {len(rest)} steps again")
+                        steps, i = steps[:i] + rest, i
+                continue
+            stats.replans += 1
+            kind, text = problem
+            world.event(kind, f"replan {stats.replans}: {text}")
+            if stats.replans > self.execution.max_replans:
+                return failed(FailureReason.REPLAN_BUDGET)
+            repaired = self._repair(world, steps, needed, rng, deadline, stats)
+            if isinstance(repaired, FailureReason):
+                world.event("replan_failed", f"replan {stats.replans} found no plan: {repaired}")
+                return failed(repaired)
+            steps, i = repaired, 0
+            needed = necessary_atoms([s.op for s in steps], world.task.goal)
+        return ClosedLoopResult(True, None, world, stats, tuple(executed))
+
+    def _execute(
+        self, world: WorldRun, step: PlannedStep, needed_after: frozenset[GroundAtom]
+    ) -> tuple[str, str] | None:
+        """Step ``step`` in the world; None when it reached its expected atoms."""
+        start = step.states[0]
+        if (
+            world.state.sim is not None
+            and start.sim is not None
+            and world.state.sim.world is start.sim.world
+            and np.array_equal(world.state.sim.flat, start.sim.flat)
+        ):
+            world.reuse(step.op, step.subgoal, step.actions, step.states[1:])
+            return None
+        keep: tuple[GroundAtom, ...] = ()
+        if self.execution.watch_atoms:
+            keep = kept_atoms(
+                step.op,
+                world.atoms(),
+                needed_after,
+                self.model.contact_predicates,
+                step.states,
+            )
+        reason = world.execute(step.skill, step.op, step.subgoal, step.test, keep)
+        if reason is None:
+            return None
+        if reason is FailureReason.ATOM_LOST:
+            lost = [a for a in keep if not a.holds(world.state)]
+            return (
+                "atom_lost",
+                f"{atoms_text(lost) or 'an atom'} stopped holding during {step.op}",
+            )
+        return ("skill_failed", f"{step.op} failed in the world: {reason}")
+
+    def _deviated(self, world_state: State, model_state: State) -> bool:
+        atol = self.execution.rerefine_atol
+        if atol is None:
+            return False
+        for obj, value in world_state.data.items():
+            other = model_state.data.get(obj)
+            if other is None or other.shape != value.shape:
+                return True
+            if np.max(np.abs(value - other), initial=0.0) > atol:
+                return True
+        return False
+
+    def _repair(
+        self,
+        world: WorldRun,
+        steps: list[PlannedStep],
+        needed: Sequence[frozenset[GroundAtom]],
+        rng: np.random.Generator,
+        deadline: float,
+        stats: ClosedLoopStats,
+    ) -> list[PlannedStep] | FailureReason:
+        """The rest of the same abstract plan from where it still applies, else a new plan."""
+        j = repair_point(needed, world.atoms())
+        if j is not None and j < len(steps):
+            rest = self._refine_rest(world, [s.op for s in steps[j:]], rng, deadline, stats)
+            if rest is not None:
+                world.event(
+                    "replanned",
+                    f"replan {stats.replans}: the plan's last {len(rest)} steps refined again",
+                )
+                return rest
+        new = self._plan(world, rng, deadline, stats)
+        if not isinstance(new, FailureReason):
+            world.event("replanned", f"replan {stats.replans}: a new plan of {len(new)} steps")
+        return new
+
+
+def _test(op: GroundOperator, after: frozenset[GroundAtom]) -> CompletionTest:
+    return completion_test(op, after)
+
+
+def world_run(env: Environment, task: Task, config: PlanningConfig, deadline: float) -> WorldRun:
+    """A :class:`WorldRun` of ``task`` in ``env`` with ``config``'s skill limits."""
+    return WorldRun(env, task, RolloutConfig.of(config), deadline)

@@ -1,0 +1,120 @@
+"""The world side of an execution: a task's state moving forward only, never reset.
+
+:class:`WorldRun` executes skills (through the shared rollout,
+:class:`bpns.execution.executor.SkillExecutor`, on the world's environment, so every
+control step the policy sees the world's observation), replays actions open loop, and
+keeps what happened: every action, one execution record per skill, and the monitor's
+events. Unlike refinement in the model, a failed execution is not undone: the world
+stays where the failed skill left it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from bpns.env.abstraction import abstract
+from bpns.env.environment import Environment
+from bpns.execution.executor import (
+    CompletionTest,
+    Executed,
+    RolloutConfig,
+    SkillExecutor,
+)
+from bpns.execution.failures import NOT_EXECUTED, FailureReason
+from bpns.execution.rollouts import REACHED, Event, Rollout, rollout_of
+from bpns.structs import GroundAtom, GroundOperator, Skill, State, Task
+
+
+class WorldRun:
+    """One task executing in ``env`` (the world), from ``task.init``."""
+
+    def __init__(
+        self,
+        env: Environment,
+        task: Task,
+        config: RolloutConfig,
+        deadline: float | None,
+    ) -> None:
+        self.env = env
+        self.task = task
+        self.executor = SkillExecutor(env, task, config, deadline)
+        self.keep_for = max(1, int(env.contact_settle_steps))
+        self.state = task.init
+        self.actions: list[np.ndarray] = []
+        self.executions: list[tuple] = []  # (ground operator, subgoal, actions, outcome)
+        self.events: list[Event] = []
+        self.world_steps = 0  # control steps simulated in the world (reused ones excluded)
+
+    @property
+    def used(self) -> int:
+        return len(self.actions)
+
+    def atoms(self) -> frozenset[GroundAtom]:
+        return abstract(self.state, self.env.predicates)
+
+    def goal_holds(self) -> bool:
+        return self.task.goal_holds(abstract(self.state, self.env.goal_predicates))
+
+    def event(self, kind: str, text: str) -> None:
+        self.events.append(Event(self.used, kind, text))
+
+    def execute(
+        self,
+        skill: Skill,
+        op: GroundOperator,
+        subgoal: np.ndarray,
+        test: CompletionTest,
+        keep: Sequence[GroundAtom] = (),
+    ) -> FailureReason | None:
+        """Run ``skill`` towards ``subgoal`` until ``test`` holds; None on success, else
+        why it failed. Whatever it executed stays executed (the world moved)."""
+        before = self.executor.sim_steps
+        out = self.executor.execute(
+            skill, op.objects, subgoal, self.state, test, self.used, keep, self.keep_for
+        )
+        self.world_steps += self.executor.sim_steps - before
+        if isinstance(out, Executed):
+            self._advance(op, subgoal, out.actions, out.states, REACHED)
+            return None
+        ran = out not in NOT_EXECUTED
+        actions = self.executor.last_actions if ran else []
+        states = self.executor.last_states if ran else []
+        self._advance(op, subgoal if ran else None, actions, states, str(out))
+        return out
+
+    def reuse(
+        self,
+        op: GroundOperator,
+        subgoal: np.ndarray,
+        actions: Sequence[np.ndarray],
+        states: Sequence[State],
+    ) -> None:
+        """Take over a segment the model simulated from this very state under this very
+        physics: the world would reproduce it bit for bit (``f`` is deterministic)."""
+        self._advance(op, subgoal, actions, states, REACHED)
+
+    def replay(self, actions: np.ndarray) -> None:
+        """Apply ``actions`` one after the other, whatever happens (open loop)."""
+        for action in actions:
+            self.state = self.env.simulate(self.state, action)
+            self.actions.append(np.asarray(action, dtype=np.float64))
+            self.world_steps += 1
+
+    def _advance(self, op, subgoal, actions, states, outcome: str) -> None:
+        self.executions.append((op, subgoal, list(actions), outcome))
+        self.actions.extend(actions)
+        if states:
+            self.state = states[-1]
+
+    def rollout(self) -> Rollout:
+        dim = np.asarray(self.env.action_low).size
+        if not self.executions:  # a replayed plan: the actions alone
+            flat = np.array(self.actions, dtype=np.float64).reshape(len(self.actions), dim)
+            return Rollout(flat, (), tuple(self.events))
+        return rollout_of(self.executions, dim, self.events)
+
+    def action_array(self) -> np.ndarray:
+        dim = np.asarray(self.env.action_low).size
+        return np.array(self.actions, dtype=np.float64).reshape(len(self.actions), dim)
