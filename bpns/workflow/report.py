@@ -4,6 +4,7 @@ what a command prints; writing nothing to the terminal itself."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -59,10 +60,8 @@ def report_evaluation(
     ``page`` asks for (:mod:`bpns.workflow.report_page`). Raises ``VideoError`` when rendering
     fails and :class:`TaskNotEvaluatedError` for a task not evaluated."""
     table = conditions_line(reports) + "\n\n" + markdown_table(reports)
-    written = None
     if out is not None:
         write_results(out, reports, table, env)
-        written = write_eval_page(env, reports, out, table, seed, train, page)
     rendered = None
     no_video_of = None
     if video is not None:
@@ -77,4 +76,10 @@ def report_evaluation(
             raise TaskNotEvaluatedError(str(err)) from None
         if rendered is None:
             no_video_of = solving.label
+    written = None
+    if out is not None:
+        if rendered is not None:  # the page shows it, not a second rendering of it
+            key = (solving.approach, rendered.outcome.index)
+            page = dataclasses.replace(page, rendered={key: (rendered.video, rendered.png)})
+        written = write_eval_page(env, reports, out, table, seed, train, page)
     return EvaluationReported(table, out, rendered, no_video_of, written)

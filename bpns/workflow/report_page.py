@@ -9,8 +9,8 @@ them. A machine that cannot render (no OSMesa) still gets the page, without vide
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from bpns.env.environment import Environment
@@ -33,6 +33,8 @@ class PageRequest:
     budget: float = 60.0
     camera: str | None = None
     recordings: tuple[Recorded, ...] = ()
+    # videos already rendered (bpns eval --video): (approach, task) -> (mp4, png)
+    rendered: Mapping[tuple[str, int], tuple[Path, Path]] = field(default_factory=dict)
 
 
 DEFAULT_PAGE = PageRequest()
@@ -71,7 +73,14 @@ def write_eval_page(
     )
     started = time.monotonic()
     done = 0
+    for (approach, index), (video, png) in request.rendered.items():
+        videos[(approach, index)] = relative_link(video, out)
+        posters[(approach, index)] = relative_link(png, out)
     for report, outcome in wanted:
+        key = (report.approach, outcome.index)
+        if key in videos:
+            done += 1
+            continue
         if time.monotonic() - started >= request.budget:
             break
         path = out / VIDEO_DIR / video_name(report.approach, outcome.index)
@@ -80,7 +89,6 @@ def write_eval_page(
         except VideoError as err:
             notes.append(f"videos not rendered: {err}")
             break
-        key = (report.approach, outcome.index)
         videos[key] = relative_link(path, out)
         posters[key] = relative_link(path.with_suffix(".png"), out)
         done += 1
