@@ -8,14 +8,14 @@ OUT    ?= outputs/cover
 N      ?= 50
 TASKS  ?= 10
 
-.PHONY: run test bench results experiment lint clean system-deps
+.PHONY: run test bench results experiment lint clean system-deps browser-deps
 
 $(STAMP): pyproject.toml examples/bpns_stack/pyproject.toml
 	@$(MAKE) --no-print-directory system-deps
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q torch==2.13.0
-	$(PY) -m pip install -q -e ".[dev]"
+	$(PY) -m pip install -q -e ".[dev,viz,lerobot]"  # the extras too: their tests run
 	$(PY) -m pip install -q --no-deps -e examples/bpns_stack  # the worked example (docs/NEW_TASK.md)
 	@touch $(STAMP)
 
@@ -34,10 +34,21 @@ system-deps:
 	  fi; \
 	fi
 
+# The report.html test drives Debian's headless Chromium (tests/inspect/test_report_page.py).
+browser-deps:
+	@if ! command -v chromium >/dev/null || ! command -v chromedriver >/dev/null; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo "installing chromium chromium-driver with apt-get"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null; \
+	  else \
+	    echo "note: the report.html test needs chromium (sudo apt-get install chromium chromium-driver)"; \
+	  fi; \
+	fi
+
 run: $(STAMP)
 	$(VENV)/bin/bpns run --env cover --demos $(N) --tasks $(TASKS) --timeout 30 --out $(OUT) --overwrite
 
-test: $(STAMP)
+test: $(STAMP) browser-deps
 	$(PY) -m pytest -q
 
 bench: $(STAMP)

@@ -20,11 +20,13 @@ import numpy as np
 
 from bpns.env.environment import Capabilities
 from bpns.env.perturbations import NOMINAL, Perturbation
+from bpns.env.scene import Anchor, SceneTrack, anchors_by_name
 from bpns.errors import BpnsError
 from bpns.structs import GroundAtom, Object, Predicate, SimState, State, Task, Type
 from ik import ControllerConfig
 from mj_envs.perturbation import noise
 from mj_envs.render import render_states
+from mj_envs.scene_geometry import scene_track
 from mj_envs.world import POSE_SLICE, World
 
 
@@ -327,6 +329,19 @@ class MujocoEnv(abc.ABC):
         self, states: Sequence[State], camera: str = "overview", width: int = 640, height: int = 480
     ):
         return render_states(states, camera, width, height, decorate=self.decorate)
+
+    def scene(self, states: Sequence[State]) -> SceneTrack | None:
+        """The 3D scene of one task's ``states`` (bodies, geometry, poses, the hand) and
+        the 3D points among each type's features (:meth:`anchors`)."""
+        if not states:
+            return None
+        return scene_track(states, {t.name: self.anchors(t) for t in self.types})
+
+    def anchors(self, type_: Type) -> tuple[Anchor, ...]:
+        """The 3D points among ``type_``'s features (a recording draws a skill's subgoal
+        there). Default: the x/y(/z) feature names (:func:`bpns.env.scene.anchors_by_name`);
+        a domain whose features name points otherwise overrides it."""
+        return anchors_by_name(type_.feature_names)
 
     # -- persistence ------------------------------------------------------------------
     def save_world(self, world: Hashable) -> str:

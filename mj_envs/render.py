@@ -57,7 +57,7 @@ def render_states(
     cols = math.ceil(math.sqrt(len(cameras)))
     rows = math.ceil(len(cameras) / cols)
     tile_w, tile_h = width // cols, height // rows
-    dressed = _render_model(world)
+    dressed = render_model(world)
     model = dressed.model if dressed is not None else world.model
     data = mujoco.MjData(model) if dressed is not None else world.data
     limit = (model.vis.global_.offwidth, model.vis.global_.offheight)
@@ -107,7 +107,7 @@ def camera_names(world: World) -> tuple[str, ...]:
     return tuple(world.model.camera(i).name for i in range(world.model.ncam))
 
 
-def _render_model(world: World) -> RenderModel | None:
+def render_model(world: World) -> RenderModel | None:
     """The scene's render model, built once per scene (None: draw the simulated model)."""
     if "render_model" not in world.cache:
         world.cache["render_model"] = dressed_model(world.model, world.xml, world.robot)

@@ -138,6 +138,9 @@ class ToyStickButton:
     def render(self, states, camera: str, width: int, height: int):
         return iter(np.zeros((height, width, 3), dtype=np.uint8) for _ in states)
 
+    def scene(self, states):
+        return None  # no 3D scene to show
+
     def simulate(self, state: State, action: np.ndarray) -> State:
         data = {o: v.copy() for o, v in state.data.items()}
         robot = next(o for o in data if o.type == ROBOT)
@@ -359,6 +362,9 @@ class ToyLights:
 
     def render(self, states, camera: str, width: int, height: int):
         return iter(np.zeros((height, width, 3), dtype=np.uint8) for _ in states)
+
+    def scene(self, states):
+        return None  # no 3D scene to show
 
     def simulate(self, state: State, action: np.ndarray) -> State:
         data = {}

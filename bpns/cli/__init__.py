@@ -18,7 +18,18 @@ from collections.abc import Iterator, Sequence
 from types import ModuleType
 
 from bpns.atomic import storage_problem
-from bpns.cli import check_env, demos, experiment, learn, render, replay, run, skills
+from bpns.cli import (
+    check_env,
+    demos,
+    experiment,
+    export,
+    learn,
+    render,
+    replay,
+    run,
+    skills,
+    view,
+)
 from bpns.cli import eval as eval_
 from bpns.errors import BpnsError
 
@@ -26,6 +37,8 @@ COMMANDS: dict[str, ModuleType] = {
     "demos": demos,
     "replay": replay,
     "render": render,
+    "view": view,
+    "export": export,
     "learn": learn,
     "skills": skills,
     "eval": eval_,

@@ -22,12 +22,23 @@ from bpns.cli.common import (
     task_progress,
     tolerance_or_off,
 )
-from bpns.cli.paths import capped_to_cores, check_eval_outputs, writing
+from bpns.cli.paths import (
+    capped_to_cores,
+    check_eval_outputs,
+    check_not_inside,
+    check_output_dir,
+    check_output_file,
+    writing,
+)
 from bpns.env.perturbations import PerturbationError
 from bpns.env.worlds import ModelSpec, WorldDistribution, parse_model, parse_world
 from bpns.evaluation.reporting import solved_line
+from bpns.inspect.extras import require
+from bpns.inspect.html_report import PAGE
 from bpns.workflow.evaluate import EvalRequest, evaluate_approaches
+from bpns.workflow.inspect import RERUN_TASKS, record_evaluation, recording_name
 from bpns.workflow.report import report_evaluation
+from bpns.workflow.report_page import REPORT_VIDEOS, PageRequest
 
 HELP = "solve held-out tasks by bilevel planning; results JSON + markdown table"
 
@@ -108,8 +119,52 @@ def configure(p: argparse.ArgumentParser) -> None:
         "samples that failed and why (also in results.json, `explanation`)",
     )
     p.add_argument(
+        "--report-videos",
+        choices=REPORT_VIDEOS,
+        default="failed",
+        help="with --out: the tasks whose videos report.html shows (failed: every failed task "
+        "and the solved one with the longest plan; default: %(default)s)",
+    )
+    p.add_argument(
+        "--report-video-budget",
+        type=positive_float,
+        default=60.0,
+        metavar="SECONDS",
+        help="with --out: seconds of rendering report.html's videos, at most (default: "
+        "%(default)s)",
+    )
+    p.add_argument(
+        "--rerun",
+        type=path_arg,
+        metavar="DIR",
+        help="write Rerun recordings (<approach>_task<i>.rrd) of the tasks --rerun-tasks "
+        "names into DIR (pip install 'bpns[viz]')",
+    )
+    p.add_argument(
+        "--rerun-tasks",
+        choices=RERUN_TASKS,
+        default="failed",
+        help="with --rerun: every task, or the failed ones and the solved one with the "
+        "longest plan (default: %(default)s)",
+    )
+    p.add_argument(
         "--overwrite", action="store_true", help="replace existing results and video files"
     )
+
+
+def check_inspect_outputs(args: argparse.Namespace, names: list[str]) -> None:
+    """report.html in --out and the recordings --rerun may write, checked up front (and
+    that the viz extra is there, before any task runs)."""
+    if args.out is not None:
+        check_output_file(args.out / PAGE, "--out", args.overwrite)
+    if args.rerun is None:
+        return
+    require("rerun", "--rerun")
+    check_not_inside(args.rerun, "--rerun", args.skills, "the skills directory")
+    check_output_dir(args.rerun, "--rerun")
+    for name in names:
+        for task in range(args.tasks):
+            check_output_file(args.rerun / recording_name(name, task), "--rerun", args.overwrite)
 
 
 def add_world_arguments(p: argparse.ArgumentParser) -> None:
@@ -192,6 +247,7 @@ def run(args: argparse.Namespace) -> int:
     names = list(dict.fromkeys(args.approach))
     approaches = [approach_by_name(a) for a in names]
     check_eval_outputs(args.out, args.video, names, args.overwrite, args.skills)
+    check_inspect_outputs(args, names)
     workers = capped_to_cores(args.workers, "--workers")
     learned = None
     if any(a.skills is SkillSource.LEARNED for a in approaches):
@@ -251,9 +307,14 @@ def run(args: argparse.Namespace) -> int:
         progress=task_progress,
         finished=lambda report: print(solved_line(report), flush=True),
     )
+    recorded = []
+    if args.rerun is not None:
+        with writing(args.rerun, "--rerun"):
+            recorded = record_evaluation(env, reports, args.rerun, args.rerun_tasks, print)
+    page = PageRequest(args.report_videos, args.report_video_budget, args.camera, tuple(recorded))
     with writing(args.out or args.video):
         reported = report_evaluation(
-            env, reports, args.out, args.video, args.seed, args.train, args.task, args.camera
+            env, reports, args.out, args.video, args.seed, args.train, args.task, args.camera, page
         )
     print_lines(reported)
     if reported.no_video_of is not None:

@@ -20,6 +20,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from bpns.env.perturbations import Perturbation, PerturbationError
+from bpns.env.scene import SceneTrack
 from bpns.errors import BpnsError
 from bpns.structs import GivenSkill, Predicate, Skill, State, Task, Type
 
@@ -169,6 +170,11 @@ class Environment(Protocol):
         self, states: Sequence[State], camera: str, width: int, height: int
     ) -> Iterator[np.ndarray]:
         """RGB frames (height, width, 3) of ``states`` seen from ``camera``."""
+        ...
+
+    def scene(self, states: Sequence[State]) -> SceneTrack | None:
+        """The 3D scene of ``states`` (one task's): bodies, their geometry and poses, the
+        hand (``bpns view`` records it); None: the environment has none to show."""
         ...
 
     def simulate(self, state: State, action: np.ndarray) -> State:

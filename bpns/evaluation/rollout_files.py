@@ -13,7 +13,8 @@ MJCF), with attributes that say what the rows are:
   failed, "" when solved), ``plan`` (JSON list of :class:`bpns.execution.rollouts.PlanStep`),
   ``physics`` (JSON of the task's own world: what replay needs to be exact), ``events``
   (JSON list of :class:`bpns.execution.rollouts.Event`: the monitor's divergences and
-  replans) and ``replans``.
+  replans), ``replans`` and, for a failed task, ``explanation``
+  (JSON: what the planner tried, as in results.json).
 
 Files written before per-task worlds carry no ``physics`` per row: their root
 ``perturbation`` is every row's.
@@ -101,6 +102,8 @@ def _outcome_attrs(o: TaskOutcome) -> dict:
         "physics": o.world.to_json(),
         "events": json.dumps([e.to_json() for e in rollout.events]),
         "replans": int(o.replans),
+        # a failed task: what the planner tried (bpns view shows it)
+        **({"explanation": json.dumps(o.explanation)} if o.explanation else {}),
     }
 
 

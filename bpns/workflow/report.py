@@ -4,6 +4,7 @@ what a command prints; writing nothing to the terminal itself."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -13,6 +14,7 @@ from bpns.errors import BpnsError
 from bpns.evaluation.evaluate import EvalReport, conditions_line, markdown_table
 from bpns.evaluation.reporting import SolvedVideo, render_longest_solved, write_results
 from bpns.execution.video import VideoError
+from bpns.workflow.report_page import DEFAULT_PAGE, PageRequest, PageWritten, write_eval_page
 
 
 class TaskNotEvaluatedError(BpnsError, ValueError):
@@ -25,6 +27,7 @@ class EvaluationReported:
     out: Path | None
     video: SolvedVideo | None
     no_video_of: str | None  # the approach whose video was asked for but solved nothing
+    page: PageWritten | None = None  # out/report.html
 
     def lines(self) -> list[str]:
         out = self.table.rstrip("\n").splitlines()
@@ -33,6 +36,8 @@ class EvaluationReported:
                 f"wrote {self.out / 'results.json'}, {self.out / 'results.md'} "
                 "and rollouts_<approach>.h5"
             )
+        if self.page is not None:
+            out.append(self.page.line())
         if self.video is not None:
             out.extend(self.video.lines())
         return out
@@ -47,10 +52,12 @@ def report_evaluation(
     train: bool = False,
     task: int | None = None,
     camera: str | None = None,
+    page: PageRequest = DEFAULT_PAGE,
 ) -> EvaluationReported:
     """Write the results files to ``out`` and render a task to ``video`` (each when
     given): ``task`` of the first approach, solved or failed, else the longest solved
-    plan of the first approach that solved anything. Raises ``VideoError`` when rendering
+    plan of the first approach that solved anything; ``out/report.html`` with the videos
+    ``page`` asks for (:mod:`bpns.workflow.report_page`). Raises ``VideoError`` when rendering
     fails and :class:`TaskNotEvaluatedError` for a task not evaluated."""
     table = conditions_line(reports) + "\n\n" + markdown_table(reports)
     if out is not None:
@@ -69,4 +76,10 @@ def report_evaluation(
             raise TaskNotEvaluatedError(str(err)) from None
         if rendered is None:
             no_video_of = solving.label
-    return EvaluationReported(table, out, rendered, no_video_of)
+    written = None
+    if out is not None:
+        if rendered is not None:  # the page shows it, not a second rendering of it
+            key = (solving.approach, rendered.outcome.index)
+            page = dataclasses.replace(page, rendered={key: (rendered.video, rendered.png)})
+        written = write_eval_page(env, reports, out, table, seed, train, page)
+    return EvaluationReported(table, out, rendered, no_video_of, written)
