@@ -234,6 +234,8 @@ class ClosedLoopPlanner:
             stats.replans += 1
             kind, text = problem
             world.event(kind, f"replan {stats.replans}: {text}")
+            if world.used >= world.task.horizon:  # no step left to act: nothing to plan for
+                return failed(FailureReason.TASK_HORIZON)
             if stats.replans > self.execution.max_replans:
                 return failed(FailureReason.REPLAN_BUDGET)
             repaired = self._repair(world, steps, needed, rng, deadline, stats)

@@ -22,7 +22,7 @@ def run_dir(tmp_path_factory):
             "--env",
             "cover",
             "--demos",
-            "12",
+            "20",
             "--tasks",
             "3",
             "--timeout",
@@ -46,16 +46,16 @@ def test_run_writes_demos_skills_results_and_a_video(run_dir):
         assert r["summary"]["num_tasks"] == 3 and len(r["tasks"]) == 3
     table = (run_dir / "eval" / "results.md").read_text()
     rows = [line for line in table.splitlines() if line.startswith("|")]
-    assert len(rows) == 4 and "| BPNS | 12 |" in table
+    assert len(rows) == 4 and "| BPNS | 20 |" in table
     assert table.startswith("World: nominal; model: nominal; execution: closed-loop")
     reader = imageio.get_reader(str(run_dir / "eval_solved.mp4"))
     frames = [f for f in reader]
     assert len(frames) > 10 and frames[-1].std() > 5
 
 
-def test_skills_learned_from_a_dozen_demos_solve_eval_tasks(run_dir):
+def test_skills_learned_from_twenty_demos_solve_eval_tasks(run_dir):
     bpns, oracle = json.loads((run_dir / "eval" / "results.json").read_text())
-    assert bpns["num_demos"] == 12 and bpns["learning_seconds"] > 0
+    assert bpns["num_demos"] == 20 and bpns["learning_seconds"] > 0
     assert bpns["summary"]["num_solved"] >= 2
     assert all(t["validated"] for t in bpns["tasks"] if t["solved"])
     assert oracle["summary"]["num_solved"] == 3
@@ -70,7 +70,7 @@ def test_learned_cover_operators_are_pick_and_place_and_the_pddl_parses(run_dir,
 
     assert main(["skills", "show", str(run_dir / "skills")]) == 0
     text = capsys.readouterr().out
-    assert text.startswith("2 skills learned from 12 demonstrations")
+    assert text.startswith("2 skills learned from 20 demonstrations")
     assert "add: Holding(?block0)" in text and "add: Covers(?block0, ?target0)" in text
     domain = parse_domain(run_dir / "skills" / "domain.pddl")
     assert len(domain.actions) == 2
@@ -97,7 +97,7 @@ def test_eval_ablations_report_in_the_same_table(run_dir, capsys):
     )
     assert code in (0, 1)  # 1 = an approach solved nothing: allowed for one task
     out = capsys.readouterr().out
-    assert "| Samples=1 | 12 |" in out and "| AbstractPlans=1 | 12 |" in out
+    assert "| Samples=1 | 20 |" in out and "| AbstractPlans=1 | 20 |" in out
 
 
 def test_eval_records_whether_rollouts_end_in_dead_ends(run_dir, tmp_path):

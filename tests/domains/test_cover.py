@@ -90,3 +90,25 @@ def test_train_and_eval_streams_are_seeded_and_distinct(cover_env):
     c = cover_env.task(0, 5, False)
     assert a.init.sim.world is b.init.sim.world
     assert a.init.sim.world is not c.init.sim.world
+
+
+def test_a_pick_that_has_begun_closing_goes_on_closing_through_observation_noise(cover_env):
+    """Hysteresis of the close decision: 5 mm of noise on hand and block makes the 6 mm
+    test hold for single steps only; once the fingers narrowed, the pick keeps closing
+    while the hand stays within 1.5 cm (it used to open again and never grasp)."""
+    from mj_envs.domains.cover.behaviours import CLOSE_TOL, KEEP_CLOSING_TOL, grasp_point
+    from mj_envs.domains.cover.behaviours import pick_action
+
+    state = cover_env.task(0, 0, False).init
+    robot = next(o for o in state.objects if o.type.name == "robot")
+    block = next(o for o in state.objects if o.type.name == "block")
+    goal = grasp_point(state, block, state.get(block, "y"))
+    off = (CLOSE_TOL + KEEP_CLOSING_TOL) / 2  # outside the close test, inside the keep one
+
+    def at(fingers: float):
+        data = dict(state.data)
+        data[robot] = np.array([goal[0] + off, goal[1], goal[2], fingers])
+        return type(state)(data, state.sim)
+
+    assert pick_action(at(0.040), robot, block, goal[1])[3] == 1.0  # open: not near enough
+    assert pick_action(at(0.030), robot, block, goal[1])[3] == -1.0  # closing: keep closing
