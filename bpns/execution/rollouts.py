@@ -132,13 +132,21 @@ def step_captions(steps: Sequence[PlanStep], num_states: int) -> list[str]:
 
 def event_captions(captions: Sequence[str], events: Sequence[Event], hold: int = 40) -> list[str]:
     """``captions`` with each monitor event's text added below, from the state where it
-    happened for ``hold`` states (2 s at 20 Hz), so a video shows why it replanned."""
+    happened for ``hold`` states (2 s at 20 Hz), so a video shows why it replanned.
+
+    Of the latest step's events the cause is shown (``replan 1: expected ... did not
+    hold``), not what the planner did about it, which follows at the same step."""
     out = list(captions)
     for i in range(len(out)):
         current = [e for e in events if e.at <= max(0, i - 1) < e.at + hold]
         if current:
-            out[i] = f"{out[i]}\n{current[-1].text}"
+            latest = [e for e in current if e.at == current[-1].at]
+            causes = [e for e in latest if e.kind not in _RESPONSES]
+            out[i] = f"{out[i]}\n{(causes or latest)[-1].text}"
     return out
+
+
+_RESPONSES = frozenset({"replanned", "rerefined"})  # what the planner did, not why
 
 
 def outcome_caption(

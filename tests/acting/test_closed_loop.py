@@ -144,3 +144,16 @@ def test_necessary_atoms_regress_the_goal_through_the_plan():
 def test_bad_execution_settings_are_refused(fields):
     with pytest.raises(ExecutionConfigError):
         ExecutionConfig(**fields)
+
+
+def test_a_videos_caption_names_why_it_replanned_not_only_that_it_did():
+    from bpns.execution.rollouts import Event, event_captions
+
+    events = [
+        Event(3, "atom_lost", "replan 1: Holding(robot, stick) stopped holding"),
+        Event(3, "replanned", "replan 1: the plan's last 2 steps refined again"),
+        Event(9, "rerefined", "refined the last 1 steps again"),
+    ]
+    out = event_captions(["step"] * 12, events, hold=40)
+    assert out[0] == "step" and out[4].endswith("Holding(robot, stick) stopped holding")
+    assert out[11].endswith("refined the last 1 steps again")
