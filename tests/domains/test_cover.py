@@ -96,8 +96,12 @@ def test_a_pick_that_has_begun_closing_goes_on_closing_through_observation_noise
     """Hysteresis of the close decision: 5 mm of noise on hand and block makes the 6 mm
     test hold for single steps only; once the fingers narrowed, the pick keeps closing
     while the hand stays within 1.5 cm (it used to open again and never grasp)."""
-    from mj_envs.domains.cover.behaviours import CLOSE_TOL, KEEP_CLOSING_TOL, grasp_point
-    from mj_envs.domains.cover.behaviours import pick_action
+    from mj_envs.domains.cover.behaviours import (
+        CLOSE_TOL,
+        KEEP_CLOSING_TOL,
+        grasp_point,
+        pick_action,
+    )
 
     state = cover_env.task(0, 0, False).init
     robot = next(o for o in state.objects if o.type.name == "robot")

@@ -20,8 +20,8 @@ import numpy as np
 
 from bpns.structs import Object, State
 from mj_envs.domains.cover.rules import LINE_X, TARGET_REGION_HALF
-from mj_envs.oracles.motions import funnel_action as _funnel
 from mj_envs.oracles.motions import OPEN_FINGERS, fingers, move_action
+from mj_envs.oracles.motions import funnel_action as _funnel
 
 SAFE_Z = 0.12  # travel height of the hand (block tops are at 0.04)
 FUNNEL_SLOPE = 4.0  # required height above the goal per metre of horizontal distance
