@@ -22,6 +22,7 @@ from bpns.errors import BpnsError
 from ik import ControllerConfig, EndEffectorController
 from mj_envs.mjcf_safety import check_mjcf
 from mj_envs.perturbation import apply_to_model
+from mj_envs.physics_checks import check_numbers, check_physics
 from mj_envs.robots.panda import PANDA, Robot, ik_model
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -50,6 +51,7 @@ class World:
         queue_size: int = 0,
     ) -> None:
         check_mjcf(xml)  # scenes also come from demo files: no <include>, no file paths
+        check_numbers(xml)  # ... nor NaN (MuJoCo would print a warning and compile it)
         try:
             if queue_size:
                 spec = mujoco.MjSpec.from_string(xml)
@@ -60,7 +62,11 @@ class World:
                 self.model = mujoco.MjModel.from_xml_string(xml)
                 base_userdata = self.model.nuserdata
         except ValueError as err:
-            raise MjcfError(f"the task's MJCF does not compile: {err}") from None
+            # one line: MuJoCo's message spans several
+            raise MjcfError(
+                f"the task's MJCF does not compile: {' '.join(str(err).split())}"
+            ) from None
+        check_physics(self.model, controller_config.control_dt)  # before perturbing it
         self.xml = xml
         self.key = hashlib.sha1(xml.encode()).hexdigest()[:16]
         self.data = mujoco.MjData(self.model)

@@ -247,7 +247,13 @@ def _read_demo(g: h5py.Group, env: Environment, features_only: bool) -> Demonstr
         raise ValueError("states, features and actions have inconsistent lengths")
     sims: list[SimState | None] = [None] * rows
     if not features_only:
-        world = env.load_world(checks.text_attr(g, "world"))
+        try:
+            world = env.load_world(checks.text_attr(g, "world"))
+        except ValueError as err:  # does not compile, or its physics cannot be simulated
+            raise ValueError(
+                f"its stored scene (attribute 'world') is unusable: {err}; write "
+                "the file again (`bpns demos --out` or `bpns eval --out`)"
+            ) from None
         # only the environment knows its flat state size: let it load the first state
         env.state_from_flat(world, flats[0], State({o: v[0] for o, v in feats.items()}))
         sims = [SimState(world, flat) for flat in flats]

@@ -139,6 +139,9 @@ class RolloutsFile:
         root, demos = read_attributes(path)
         if root.get("kind") != KIND:
             raise DatasetError(f"{path}: not a rollouts file (written by `bpns eval --out`)")
+        _require(path, "the file", root, ROOT_ATTRIBUTES)
+        for i, d in enumerate(demos):
+            _require(path, f"row demo_{i}", d, ROW_ATTRIBUTES)
         try:
             perturbation = Perturbation.from_json(str(root.get("perturbation", "{}")))
             worlds = (
@@ -147,15 +150,25 @@ class RolloutsFile:
                 else WorldDistribution.of(perturbation)
             )
             model = ModelSpec.from_json(str(root["model"])) if "model" in root else WORLD_MODEL
-            rows = tuple(_row(i, d, perturbation) for i, d in enumerate(demos))
         except (KeyError, TypeError, ValueError, PerturbationError) as err:
-            raise DatasetError(f"{path}: damaged rollout records: {err}") from None
+            raise DatasetError(
+                f"{path}: damaged rollout records: {err}; write it again with `bpns eval --out DIR`"
+            ) from None
+        rows = []
+        for i, d in enumerate(demos):
+            try:
+                rows.append(_row(i, d, perturbation))
+            except (AttributeError, KeyError, TypeError, ValueError, PerturbationError) as err:
+                raise DatasetError(
+                    f"{path}: row demo_{i} is damaged: {err}; write it again with "
+                    "`bpns eval --out DIR`"
+                ) from None
         return cls(
             str(path),
             str(root["approach"]),
             str(root["label"]),
             perturbation,
-            rows,
+            tuple(rows),
             worlds,
             model,
             str(root.get("execution", "open-loop")),
@@ -176,6 +189,20 @@ class RolloutsFile:
         """Row ``row``'s demonstration, loaded into its own world."""
         (demo,) = load_demonstrations(self.path, self.environment(env, row), [row.position])
         return demo
+
+
+ROOT_ATTRIBUTES = ("approach", "label")
+ROW_ATTRIBUTES = ("task", "solved", "reason", "plan")
+
+
+def _require(path: str | os.PathLike, where: str, attrs: dict, names: tuple[str, ...]) -> None:
+    """A missing attribute is named with its row (a KeyError would name neither)."""
+    missing = [n for n in names if n not in attrs]
+    if missing:
+        raise DatasetError(
+            f"{path}: {where} lacks the attribute {', '.join(repr(n) for n in missing)}: "
+            "not a complete rollouts file; write it again with `bpns eval --out DIR`"
+        )
 
 
 def _row(position: int, d: dict, fallback: Perturbation) -> RolloutInfo:

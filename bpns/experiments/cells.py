@@ -21,7 +21,7 @@ from bpns.data.demo_attempts import demo_noise_of
 from bpns.env.environment import Environment
 from bpns.env.perturbations import Perturbation
 from bpns.experiments import approach_info
-from bpns.experiments.presets import SweepConfig
+from bpns.experiments.presets import SweepConfig, SweepConfigError, level_label
 from bpns.learning.config import LearningConfig, learning_config_for
 from bpns.planning.config import PlanningConfig, planning_config_for
 
@@ -63,7 +63,8 @@ class Cell:
         if self.kind == EVAL:
             level = ""
             if self.perturbation is not None and self.perturb_axis is not None:
-                level = f"-{self.perturb_axis}{getattr(self.perturbation, self.perturb_axis):g}"
+                value = getattr(self.perturbation, self.perturb_axis)
+                level = f"-{self.perturb_axis}{level_label(value)}"
             if self.world is not None or self.execution is not None:
                 level += f"-{_slug(self.world or 'nominal')}-{self.execution or 'closed-loop'}"
                 if self.model != "nominal":
@@ -114,7 +115,9 @@ class Cell:
         elif self.count is not None:
             parts.append(f"{self.count} demos")
         if self.perturbation is not None and self.perturb_axis is not None:
-            parts.append(f"{self.perturb_axis}={getattr(self.perturbation, self.perturb_axis):g}")
+            parts.append(
+                f"{self.perturb_axis}={level_label(getattr(self.perturbation, self.perturb_axis))}"
+            )
         if self.world is not None or self.execution is not None:
             parts.append(f"world {self.world or 'nominal'} {self.execution or 'closed-loop'}")
         parts.append(f"seed {self.seed}")
@@ -159,7 +162,16 @@ def plan_cells(config: SweepConfig, envs: Mapping[str, Environment]) -> list[Cel
                         evals += _eval_cells(name, seed, count, approach, base, config, deps)
     if not skills:  # nothing learns: no demonstrations needed
         demos = []
-    return demos + skills + evals
+    cells = demos + skills + evals
+    seen: dict[str, Cell] = {}
+    for cell in cells:  # two cells in one file would overwrite each other's results
+        other = seen.setdefault(cell.key, cell)
+        if other is not cell:
+            raise SweepConfigError(
+                f"{other.describe()!r} and {cell.describe()!r} would be stored as the same "
+                f"cell {cell.key}; sweep values that differ in their names"
+            )
+    return cells
 
 
 def _eval_cells(

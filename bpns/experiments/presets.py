@@ -22,6 +22,11 @@ class SweepConfigError(BpnsError, ValueError):
     """A sweep whose settings make no sense (empty, negative, repeated)."""
 
 
+def level_label(value: float) -> str:
+    """A perturbation level as it names a cell (and its file): 6 significant digits."""
+    return f"{value:g}"
+
+
 @dataclass(frozen=True)
 class SweepConfig:
     """Environments x demo counts x seeds x approaches, evaluated on ``eval_tasks`` tasks.
@@ -69,6 +74,15 @@ class SweepConfig:
                 raise SweepConfigError(f"perturbation axis {name}: {err}") from None
             if not levels or len(set(levels)) != len(levels):
                 raise SweepConfigError(f"perturbation axis {name}: empty or repeated levels")
+            labels = [level_label(level) for level in levels]
+            same = sorted({x for x in labels if labels.count(x) > 1})
+            if same:
+                clash = [str(v) for v, x in zip(levels, labels, strict=True) if x == same[0]]
+                raise SweepConfigError(
+                    f"perturbation axis {name}: levels {' and '.join(clash)} would share the "
+                    f"cell {name}={same[0]} (cells are named to 6 significant digits); give "
+                    "levels that differ in their first 6 digits"
+                )
         self._check_worlds()
         if self.perturb_axis is not None and self.worlds:
             raise SweepConfigError("sweep either a perturbation axis or worlds, not both")

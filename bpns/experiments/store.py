@@ -86,7 +86,7 @@ class CellStore:
             raise CellStoreError(
                 f"{path} was computed with other settings than this sweep's "
                 f"({_differences(record.get('settings'), cell.settings)}); "
-                "use another output directory, or delete the stored cells to recompute them"
+                "use another --out directory, or delete the stored cells to recompute them"
             )
         return record
 

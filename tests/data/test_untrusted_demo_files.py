@@ -212,3 +212,31 @@ def test_simulating_a_nan_simulator_state_raises(cover_env, cover_demos):
 def test_overflowing_action_is_an_invalid_action(cover_env, cover_demos):
     with pytest.raises(InvalidActionError, match="not an array of floats"):
         cover_env.simulate(cover_demos[0].states[0], [10**400, 0, 0, 0])
+
+
+@pytest.mark.parametrize(
+    ("attribute", "value", "message"),
+    [
+        ("timestep", "0", "timestep=0.0>: must be finite and > 0"),
+        ("timestep", "-0.002", "timestep=-0.002>: must be finite and > 0"),
+        ("timestep", "nan", "timestep='nan'>: not a finite number"),
+        ("timestep", "1e-300", "more than 10000 physics steps"),
+        ("impratio", "0", "impratio=0.0>: must be finite and > 0"),
+    ],
+)
+def test_replay_of_a_demo_file_with_nonsense_physics_is_one_error_naming_it(
+    demo_copy, capsys, attribute, value, message
+):
+    from bpns.cli import main
+
+    with h5py.File(demo_copy, "a") as f:
+        g = f["data/demo_0"]
+        xml = str(g.attrs["world"])
+        old = '<option timestep="0.002" impratio="10"'
+        assert old in xml
+        new = old.replace(f'{attribute}="{"0.002" if attribute == "timestep" else "10"}"', "")
+        g.attrs["world"] = xml.replace(old, f'{new} {attribute}="{value}"')
+    assert main(["replay", str(demo_copy)]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith(f"bpns: error: {demo_copy}: demo_0 is damaged: ")
+    assert "attribute 'world'" in line and message in line and "bpns demos --out" in line

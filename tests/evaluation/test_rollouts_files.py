@@ -5,7 +5,9 @@ and renders offline with captions from any camera."""
 from __future__ import annotations
 
 import dataclasses
+import shutil
 
+import h5py
 import imageio.v2 as imageio
 import numpy as np
 import pytest
@@ -200,3 +202,31 @@ def test_a_metacontroller_keeps_the_skills_it_executed_and_the_one_that_failed()
     (step,) = failed.rollout.steps
     assert step.operator == pick.operator.name and step.outcome != REACHED
     assert len(failed.rollout.actions) > 0  # the last failed sample's own actions
+
+
+@pytest.fixture(scope="module")
+def tiny_rollouts(tmp_path_factory):
+    """One oracle Cover rollout written by `bpns eval --out` (copy it before mutating)."""
+    out = tmp_path_factory.mktemp("tiny_eval")
+    args = ["eval", "--env", "cover", "--approach", "oracle", "-n", "1", "--timeout", "10"]
+    assert main([*args, "--workers", "1", "--report-videos", "none", "--out", str(out)]) == 0
+    return out / "rollouts_oracle.h5"
+
+
+@pytest.mark.parametrize(
+    ("group", "attribute", "where"),
+    [("/", "approach", "the file"), ("data/demo_0", "plan", "row demo_0")],
+)
+def test_replay_and_render_name_the_row_and_attribute_a_rollouts_file_lacks(
+    tiny_rollouts, tmp_path, capsys, group, attribute, where
+):
+    path = tmp_path / "rollouts_oracle.h5"
+    shutil.copy(tiny_rollouts, path)
+    with h5py.File(path, "a") as f:
+        del f[group].attrs[attribute]
+    for args in (["replay", str(path)], ["render", str(path), "--task", "0"]):
+        assert main(args) == 2
+        (line,) = capsys.readouterr().err.strip().splitlines()
+        assert line.startswith("bpns: error: ")
+        assert f"{where} lacks the attribute '{attribute}'" in line
+        assert "bpns eval --out" in line

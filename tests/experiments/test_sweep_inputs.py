@@ -18,9 +18,9 @@ import pytest
 
 from bpns.experiments import backends, work
 from bpns.experiments.backends import BackendError, check_reachable, host_and_port
-from bpns.experiments.cells import DEMOS
+from bpns.experiments.cells import DEMOS, EVAL
 from bpns.experiments.presets import SweepConfig
-from bpns.experiments.store import FORMAT, CellStore, CellStoreError
+from bpns.experiments.store import FORMAT, RESULT_KEYS, CellStore, CellStoreError
 from bpns.experiments.sweep import run_sweep, sweep_cells
 from tests.cli_probe import error_line
 
@@ -234,4 +234,36 @@ def test_a_sweep_whose_demonstrations_cannot_fit_is_refused_before_work(
     line = error_line([*SWEEP, "--out", str(out)], capsys)
     assert line.startswith(f"bpns: error: --out {out}: 2 demonstrations need at least ")
     assert line.endswith("has 10 kB free")
+    assert not out.exists()
+
+
+def test_an_axis_level_colliding_with_a_stored_cell_is_one_line_with_the_fix(
+    tmp_path, capsys, cover_env
+):
+    config = SweepConfig(
+        "tiny", ("cover",), (2,), (0,), ("oracle",), 1, 10.0, ("friction_scale", (0.5,))
+    )
+    (cell,) = sweep_cells(config, {"cover": cover_env})
+    record = {"format": FORMAT, "id": "x", "key": cell.key, "settings": cell.settings}
+    result = dict.fromkeys(RESULT_KEYS[EVAL], 1) | {"tasks": []}
+    record.update(inputs={}, seconds=1.0, result=result)
+    path = CellStore(tmp_path).record_path(cell.key)
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps(record))
+    argv = [*ORACLE, "--timeout", "10", "--out", str(tmp_path)]
+    line = error_line([*argv, "--perturb-axis", "friction_scale=0.5000001"], capsys)
+    assert line.startswith(f"bpns: error: {path} was computed with other settings")
+    assert "friction_scale: stored 0.5, wanted 0.5000001" in line
+    assert "use another --out directory" in line
+
+
+def test_axis_levels_that_would_share_one_cell_are_refused_before_work(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    argv = [*ORACLE, "--timeout", "10", "--out", str(out)]
+    line = error_line([*argv, "--perturb-axis", "friction_scale=0.5,0.5000001"], capsys)
+    assert line == (
+        "bpns: error: perturbation axis friction_scale: levels 0.5 and 0.5000001 would share "
+        "the cell friction_scale=0.5 (cells are named to 6 significant digits); give levels "
+        "that differ in their first 6 digits"
+    )
     assert not out.exists()
