@@ -35,6 +35,7 @@ CLOSE_TOL = 0.006  # close the fingers once the hand is this near the grasp poin
 KEEP_CLOSING_TOL = 0.015  # ... and keep closing while this near once they have narrowed:
 # the hysteresis that stops millimetres of observation noise from flicking the close
 # decision on and off (with 5 mm of noise the 6 mm test alone holds for single steps)
+OPENING_RISE = 0.003  # the most a pick rises per step while its fingers still open
 RELEASE_TOL = 0.006  # open once the block touches the table with the hand this near
 REGION_MARGIN = 0.005
 COVER_MARGIN = 0.004
@@ -62,7 +63,14 @@ def pick_action(state: State, robot: Object, block: Object, hand_y: float) -> np
     dist = np.linalg.norm(state.data[robot][:3] - goal)
     closing = fingers(state, robot) < OPEN_FINGERS
     near = dist <= CLOSE_TOL or (closing and dist <= KEEP_CLOSING_TOL)
-    return funnel_action(state, robot, goal, -1.0 if near else 1.0, FUNNEL_DEADZONE)
+    action = funnel_action(state, robot, goal, -1.0 if near else 1.0, FUNNEL_DEADZONE)
+    if closing and not near:
+        # still opening after a release: creep up, no sideways motion, so a pad that has
+        # not let go yet cannot drag the block just placed (holding still instead would
+        # never end where the fingers cannot open, outside every allowed region)
+        action[:2] = 0.0
+        action[2] = min(action[2], OPENING_RISE)
+    return action
 
 
 def place_action(state: State, robot: Object, block: Object, hand_y: float) -> np.ndarray:
