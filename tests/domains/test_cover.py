@@ -116,3 +116,26 @@ def test_a_pick_that_has_begun_closing_goes_on_closing_through_observation_noise
 
     assert pick_action(at(0.040), robot, block, goal[1])[3] == 1.0  # open: not near enough
     assert pick_action(at(0.030), robot, block, goal[1])[3] == -1.0  # closing: keep closing
+
+
+def test_a_pick_whose_fingers_still_open_creeps_up_without_moving_sideways(cover_env):
+    """A place ends the moment one pad lets go; the next pick must not rise at full speed
+    or travel while a pad may still touch the block just placed (it dragged it off its
+    target under perturbed friction). Once the fingers are open it travels as before."""
+    from mj_envs.domains.cover.behaviours import OPENING_RISE, pick_action
+
+    state = cover_env.task(0, 0, False).init
+    robot = next(o for o in state.objects if o.type.name == "robot")
+    block = next(o for o in state.objects if o.type.name == "block")
+    far_y = state.get(block, "y") + 0.2  # a grasp point far along the line
+
+    def hand_at(fingers: float):
+        data = dict(state.data)
+        data[robot] = np.array([state.get(block, "x"), state.get(block, "y"), 0.03, fingers])
+        return type(state)(data, state.sim)
+
+    opening = pick_action(hand_at(0.030), robot, block, far_y)
+    assert opening[0] == opening[1] == 0.0 and 0.0 < opening[2] <= OPENING_RISE
+    assert opening[3] == 1.0
+    opened = pick_action(hand_at(0.040), robot, block, far_y)
+    assert opened[2] > OPENING_RISE and opened[3] == 1.0
