@@ -27,12 +27,20 @@ class ExecutionConfig:
     watch_atoms:      end a skill the moment an atom the rest of the plan needs (and the
                       model's rollout kept) stops holding for the environment's
                       ``contact_settle_steps``, instead of at its horizon.
+    horizon_scale:    a skill executing in the world may take this many times its own
+                      horizon (still capped by the planner's ``max_skill_horizon``). The
+                      horizon learned from demonstrations cuts refinement short in the
+                      model, where a slow sample is cheap to abandon; in the world,
+                      abandoning a skill that is still moving (a softer arm, a delayed
+                      command) costs a replan from a state the plan never expected.
+                      A skill that stops moving still ends at once (``stuck``).
     """
 
     closed_loop: bool = True
     max_replans: int = 10
     rerefine_atol: float | None = 0.01
     watch_atoms: bool = True
+    horizon_scale: float = 2.0
 
     def __post_init__(self) -> None:
         if isinstance(self.max_replans, bool) or not isinstance(self.max_replans, int):
@@ -44,6 +52,11 @@ class ExecutionConfig:
         atol = self.rerefine_atol
         if atol is not None and not (0.0 < atol < math.inf):
             raise ExecutionConfigError(f"rerefine_atol must be finite and > 0, got {atol}")
+
+        if not (1.0 <= self.horizon_scale < math.inf):
+            raise ExecutionConfigError(
+                f"horizon_scale must be finite and >= 1, got {self.horizon_scale}"
+            )
 
     @property
     def mode(self) -> str:

@@ -320,6 +320,16 @@ def _test(op: GroundOperator, after: frozenset[GroundAtom]) -> CompletionTest:
     return completion_test(op, after)
 
 
-def world_run(env: Environment, task: Task, config: PlanningConfig, deadline: float) -> WorldRun:
-    """A :class:`WorldRun` of ``task`` in ``env`` with ``config``'s skill limits."""
-    return WorldRun(env, task, RolloutConfig.of(config), deadline)
+def world_run(
+    env: Environment,
+    task: Task,
+    config: PlanningConfig,
+    deadline: float,
+    execution: ExecutionConfig | None = None,
+) -> WorldRun:
+    """A :class:`WorldRun` of ``task`` in ``env`` with ``config``'s skill limits, each
+    skill's horizon scaled by ``execution.horizon_scale``."""
+    limits = RolloutConfig.of(config)
+    if execution is not None:
+        limits = dataclasses.replace(limits, horizon_scale=execution.horizon_scale)
+    return WorldRun(env, task, limits, deadline)

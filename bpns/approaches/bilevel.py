@@ -76,7 +76,7 @@ class BilevelPlanning(Approach):
         deadline = time.monotonic() + timeout
         config = with_timeout(self.config, timeout)
         planner = ClosedLoopPlanner(self.skills, model, config, execution, _explanation)
-        out = planner.run(world_run(world, task, config, deadline), rng, deadline)
+        out = planner.run(world_run(world, task, config, deadline, execution), rng, deadline)
         return closed_loop_solution(out)
 
 

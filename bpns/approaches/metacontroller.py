@@ -145,7 +145,10 @@ class Metacontroller(Approach):
         deadline = time.monotonic() + timeout
         config = RolloutConfig.of(self.config)
         executor = SkillExecutor(self.env, task, config, deadline)
-        run = WorldRun(world_env or self.env, task, config, deadline)
+        world_config = config
+        if world_env is not None and execution is not None:
+            world_config = dataclasses.replace(config, horizon_scale=execution.horizon_scale)
+        run = WorldRun(world_env or self.env, task, world_config, deadline)
         history: list[SkillChoice] = []
         samples = replans = 0
 

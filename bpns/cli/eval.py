@@ -211,6 +211,13 @@ def add_world_arguments(p: argparse.ArgumentParser) -> None:
         "world's features left the model's by more than this (m/rad), or 'off' "
         "(default: %(default)s)",
     )
+    p.add_argument(
+        "--horizon-scale",
+        type=float,
+        default=ExecutionConfig().horizon_scale,
+        help="closed loop: a skill executing in the world may take this many times its "
+        "learned horizon (>= 1; default: %(default)s)",
+    )
 
 
 def world_settings(
@@ -228,8 +235,11 @@ def world_settings(
     atol = None if args.rerefine_atol == "off" else args.rerefine_atol
     if atol == 0:
         raise UserError("--rerefine-atol: expected a number > 0 or 'off', got 0")
+    scale = args.horizon_scale
+    if not (1.0 <= scale < float("inf")):
+        raise UserError(f"--horizon-scale: expected a finite number >= 1, got {scale:g}")
     execution = ExecutionConfig.of_mode(
-        args.execution, max_replans=args.max_replans, rerefine_atol=atol
+        args.execution, max_replans=args.max_replans, rerefine_atol=atol, horizon_scale=scale
     )
     return worlds, model, execution
 

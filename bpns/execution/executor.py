@@ -16,6 +16,7 @@ every control step.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -38,6 +39,9 @@ class RolloutConfig:
     stuck_atol: float = 1e-3
     end_on_contact_change: bool = False
     end_at_dead_end: bool = True
+    # multiplies a skill's own horizon (learned from its demonstrations); the world may
+    # give a skill still moving more time than refinement in the model does
+    horizon_scale: float = 1.0
 
     @classmethod
     def of(cls, config: object) -> RolloutConfig:
@@ -199,7 +203,7 @@ class SkillExecutor:
         lost = 0
         limit = self.config.max_skill_horizon
         if skill.horizon is not None:
-            limit = min(limit, skill.horizon)
+            limit = min(limit, math.ceil(skill.horizon * self.config.horizon_scale))
         for t in range(limit):
             if deadline is not None and time.monotonic() >= deadline:
                 raise ExecutionTimeout

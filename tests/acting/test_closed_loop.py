@@ -6,6 +6,8 @@ the first time the robot carries the stick past x = 2.5 the stick slips out of i
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -40,6 +42,13 @@ class SlipOnce(toy.ToyStickButton):
         return out
 
 
+class SoftArm(toy.ToyStickButton):
+    """The arm covers 60 % of the distance the model predicts per command."""
+
+    def simulate(self, state: State, action: np.ndarray) -> State:
+        return super().simulate(state, np.array([0.6 * action[0], action[1]]))
+
+
 def _far_button_task():
     return toy.make_task([7.0])
 
@@ -63,6 +72,31 @@ def test_the_monitor_fires_when_the_stick_slips_and_the_replan_solves_the_task()
     assert solution.rollout.steps[1].outcome == str(FailureReason.ATOM_LOST)
     # the actions are the world's: replayed in a fresh slippery world they reach the goal
     assert plan_reaches_goal(SlipOnce(), task, solution.actions)
+
+
+def _with_press_horizon(horizon: int) -> list:
+    return [
+        dataclasses.replace(s, horizon=horizon) if s.operator is toy.PRESS_DIRECT else s
+        for s in toy.skills()
+    ]
+
+
+def test_a_skill_still_moving_in_a_softer_world_gets_more_than_its_own_horizon():
+    # the press needs 6 steps in the model and its horizon is 7; the softer world needs 12
+    model, world, task = toy.ToyStickButton(), SoftArm(), toy.make_task([3.0])
+    planner = BilevelPlanning(model, _with_press_horizon(7), CONFIG)
+
+    def solve(execution: ExecutionConfig):
+        return planner.solve_in_world(task, model, world, np.random.default_rng(0), 20.0, execution)
+
+    strict = solve(ExecutionConfig(horizon_scale=1.0))
+    assert strict.success and strict.replans >= 1
+    assert "skill_horizon" in strict.rollout.events[0].text
+    assert strict.rollout.steps[0].outcome == str(FailureReason.SKILL_HORIZON)
+    patient = solve(ExecutionConfig())  # horizon_scale 2: the press may take 14 steps
+    assert patient.success and patient.replans == 0
+    assert len(patient.rollout.steps) == 1 and 7 < len(patient.actions) <= 14
+    assert plan_reaches_goal(SoftArm(), task, patient.actions)
 
 
 def test_open_loop_replays_the_models_plan_and_misses_the_goal_in_the_world():
@@ -139,7 +173,14 @@ def test_necessary_atoms_regress_the_goal_through_the_plan():
 
 
 @pytest.mark.parametrize(
-    "fields", [{"max_replans": -1}, {"max_replans": 1.5}, {"rerefine_atol": 0.0}]
+    "fields",
+    [
+        {"max_replans": -1},
+        {"max_replans": 1.5},
+        {"rerefine_atol": 0.0},
+        {"horizon_scale": 0.5},
+        {"horizon_scale": float("inf")},
+    ],
 )
 def test_bad_execution_settings_are_refused(fields):
     with pytest.raises(ExecutionConfigError):
