@@ -1,6 +1,7 @@
 """Which learned skill is weak, and why: closed-loop tests of each skill on held-out demos.
 
     python scripts/skill_diagnostics.py SKILLS DEMOS --first 900 --count 100 [--samples 5]
+        [--perturb latency=2 obs_noise=0.005] [--horizon-scale 2]
 
 For every segment of the held-out demonstrations ``DEMOS[first : first + count]`` (not
 used for learning when ``first`` is past ``bpns learn --limit``) that a learned skill
@@ -15,6 +16,11 @@ refinement uses) in three ways:
 - ``steps``: simulated steps per successful rollout against the demonstrated segment's
   length (a skill that dawdles costs planning time even when it succeeds).
 
+``--perturb`` rolls every skill out in a world of fixed perturbed physics instead (the
+``bpns eval --perturb`` names, one value each; the start state is carried into it as the
+closed loop does), with each skill's horizon times ``--horizon-scale`` (the world's
+``ExecutionConfig.horizon_scale``): which skill a world breaks.
+
 Failure reasons are the planner's (``bpns.execution.failures``). Nothing is written; the table
 goes to stdout. The environment is the one the skills directory records.
 """
@@ -22,6 +28,7 @@ goes to stdout. The environment is the one the skills directory records.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 
@@ -29,6 +36,8 @@ import numpy as np
 
 from bpns.baselines.gnn_meta import label_segment
 from bpns.data.datasets import iter_demonstrations
+from bpns.env.environment import adopt_state, perturbed
+from bpns.env.perturbations import parse_perturbation
 from bpns.execution.executor import Executed, RolloutConfig, SkillExecutor, completion_test
 from bpns.learning.artifacts.learned import load_learned
 from bpns.learning.config import learning_config_for
@@ -57,6 +66,10 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=5, help="sampled subgoals per segment")
     parser.add_argument("--per-skill", type=int, default=40, help="segments per skill at most")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--perturb", nargs="+", default=[], metavar="NAME=VALUE", help="world physics"
+    )
+    parser.add_argument("--horizon-scale", type=float, default=1.0)
     args = parser.parse_args()
 
     env, learned = load_learned(args.skills)
@@ -64,11 +77,13 @@ def main() -> None:
     operators = [s.operator for s in skills]
     settle = learning_config_for(env).settle_steps
     config = planning_config_for(env)
+    world = perturbed(env, parse_perturbation(args.perturb))
+    limits = dataclasses.replace(RolloutConfig.of(config), horizon_scale=args.horizon_scale)
     rng = np.random.default_rng(args.seed)
     tallies: dict[str, SkillTally] = defaultdict(SkillTally)
     indices = range(args.first, args.first + args.count)
     for demo in iter_demonstrations(args.demos, env, indices):
-        executor = SkillExecutor(env, demo.task, RolloutConfig.of(config))
+        executor = SkillExecutor(world, demo.task, limits)
         for seg in segment_demonstration(demo, env.predicates, env.contact_predicates, settle):
             label = label_segment(seg, operators)
             if label is None:
@@ -81,7 +96,7 @@ def main() -> None:
             tally.segments += 1
             ground = skill.operator.ground(binding)
             test = completion_test(ground, ground.apply(seg.init_atoms))
-            start = seg.states[0]
+            start = adopt_state(world, seg.states[0])
             scope = skill.policy.dims.scope(binding)
             demo_goal = seg.states[-1].vec(scope)
             tally.steps_demo.append(len(seg.actions))
@@ -91,7 +106,7 @@ def main() -> None:
             else:
                 tally.demo_fail[str(out)] += 1
             for _ in range(args.samples):
-                subgoal = np.asarray(skill.sampler(start, binding, rng), dtype=np.float64)
+                subgoal = np.asarray(skill.sampler(seg.states[0], binding, rng), dtype=np.float64)
                 tally.sampled += 1
                 out = executor.execute(skill, binding, subgoal, start, test)
                 if isinstance(out, Executed):
@@ -99,7 +114,11 @@ def main() -> None:
                     tally.steps_ok.append(len(out.actions))
                 else:
                     tally.sampled_fail[str(out)] += 1
-    print(f"{args.skills}: held-out demos {args.first}..{args.first + args.count - 1}")
+    where = f", world {' '.join(args.perturb)}" if args.perturb else ""
+    print(
+        f"{args.skills}: held-out demos {args.first}..{args.first + args.count - 1}{where}"
+        f", horizon x{args.horizon_scale:g}"
+    )
     print(
         "| skill | segments | demo subgoal | sampled | steps (sampled ok / demo) "
         "| failures (demo; sampled) |"

@@ -126,11 +126,17 @@ def test_environments_declare_learning_defaults_that_cli_settings_override():
         contact_settle_steps = 1
         capabilities = Capabilities()
 
+    class Declaring:
+        contact_settle_steps = 3
+        capabilities = Capabilities(learning_defaults={"near_goal_scale": 0.01})
+
     assert learning_config_for(Plain()) == LearningConfig()
+    declaring = Declaring()
+    assert learning_config_for(declaring).near_goal_scale == 0.01
+    assert learning_config_for(declaring).settle_steps == 3
+    assert learning_config_for(declaring, near_goal_scale=0.5, seed=None).near_goal_scale == 0.5
     sb = make_env("stick_button")
-    assert learning_config_for(sb).near_goal_scale == 0.01
     assert learning_config_for(sb).settle_steps == sb.contact_settle_steps
-    assert learning_config_for(sb, near_goal_scale=0.5, seed=None).near_goal_scale == 0.5
     assert learning_config_for(make_env("coffee")).near_goal_scale is None
 
 

@@ -42,13 +42,13 @@ class StickButtonEnv(MujocoEnv):
     name = "stick_button"
     # Paper appendix B: many abstract plans are not refinable here (whether a button is
     # within reach is not in the predicates), so the planner may try up to 1000.
-    # The demonstrator switches within millimetres of its goals (close the fingers, press):
-    # near_goal_scale. Demonstrations with signal-dependent DART noise (docs/METHOD.md,
-    # "Learning from few demonstrations"): without it the cloned stick press kept rising
-    # wherever it had overshot the demonstrations' travel height.
+    # Demonstrations with signal-dependent DART noise (docs/METHOD.md, "Learning from few
+    # demonstrations"): without it the cloned stick press kept rising wherever it had
+    # overshot the demonstrations' travel height. No near-goal policy features any more:
+    # with DART they no longer help nominally, and their 1 cm tanh is a steep gain near
+    # every subgoal that two steps of latency turn into oscillation (docs/WORLDS.md).
     capabilities = Capabilities(
         planning_defaults={"n_abstract": 1000},
-        learning_defaults={"near_goal_scale": 0.01},
         oracle_skills=oracle_skills,
         demo_noise=0.05,
         perturbed=perturbed,
