@@ -8,6 +8,9 @@
   (10**22 tasks) costs constant memory.
 * A worker exits when the process that created the pool dies: ``PR_SET_PDEATHSIG`` on
   Linux, plus a watchdog thread that polls the creator's pid everywhere.
+* A worker that dies itself (killed by the kernel's OOM killer, a segfault in native
+  code) is a :class:`WorkerDiedError` naming the likely cause and the fix, not a
+  ``BrokenProcessPool`` traceback (:func:`result_of`, :func:`pool_map`).
 """
 
 from __future__ import annotations
@@ -22,13 +25,43 @@ import sys
 import threading
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any, TypeVar
+
+from bpns.errors import BpnsError
 
 T = TypeVar("T")
 R = TypeVar("R")
 
 PR_SET_PDEATHSIG = 1
 WATCHDOG_SECONDS = 1.0
+
+
+class WorkerDiedError(BpnsError, RuntimeError):
+    """A worker process ended abruptly, taking its job with it."""
+
+
+WORKER_DIED = (
+    "a worker process died abruptly (killed, most often by the kernel's out-of-memory "
+    "killer, or crashed in native code); what had finished before is kept. Rerun with "
+    "fewer --workers, or look for 'Out of memory' in `dmesg`"
+)
+
+
+def result_of(future: Future[R]) -> R:
+    """``future.result()``, a dead worker reported as :class:`WorkerDiedError`."""
+    try:
+        return future.result()
+    except BrokenProcessPool:
+        raise WorkerDiedError(WORKER_DIED) from None
+
+
+def pool_map(pool: Executor, fn: Callable[[T], R], items: Iterable[T]) -> Iterator[R]:
+    """``pool.map(fn, items)``, a dead worker reported as :class:`WorkerDiedError`."""
+    try:
+        yield from pool.map(fn, items)
+    except BrokenProcessPool:
+        raise WorkerDiedError(WORKER_DIED) from None
 
 
 def max_workers() -> int:
@@ -110,9 +143,9 @@ def bounded_map(
         for item in iterator:
             pending.append(pool.submit(fn, item))
             if len(pending) >= max(1, in_flight):
-                yield pending.popleft().result()
+                yield result_of(pending.popleft())
         while pending:
-            yield pending.popleft().result()
+            yield result_of(pending.popleft())
     finally:
         for future in pending:
             future.cancel()

@@ -16,7 +16,34 @@ import numpy as np
 import pytest
 
 from bpns.data.demos import collect_demonstrations
-from bpns.pools import bounded_map, capped_workers, make_pool, max_workers
+from bpns.pools import (
+    WorkerDiedError,
+    bounded_map,
+    capped_workers,
+    make_pool,
+    max_workers,
+    pool_map,
+    result_of,
+)
+
+
+def _die_on_two(x: int) -> int:
+    if x == 2:
+        os.kill(os.getpid(), signal.SIGKILL)  # what the kernel's OOM killer does
+    return x
+
+
+@pytest.mark.parametrize("how", ["bounded_map", "pool_map", "result_of"])
+def test_a_worker_killed_mid_job_is_one_clear_error_naming_the_fix(how):
+    with make_pool(1) as pool:
+        with pytest.raises(WorkerDiedError, match="fewer --workers") as err:
+            if how == "bounded_map":
+                list(bounded_map(pool, _die_on_two, range(5), in_flight=1))
+            elif how == "pool_map":
+                list(pool_map(pool, _die_on_two, range(5)))
+            else:
+                result_of(pool.submit(_die_on_two, 2))
+    assert "Traceback" not in str(err.value) and "\n" not in str(err.value)
 
 
 def test_worker_counts_are_capped_at_the_cpu_count():

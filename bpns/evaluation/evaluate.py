@@ -34,7 +34,7 @@ from bpns.env.worlds import NOMINAL_MODEL, ModelSpec, WorldDistribution
 from bpns.evaluation.intervals import wilson_interval
 from bpns.execution.rollouts import Event, Rollout
 from bpns.planning.config import PlanningConfig
-from bpns.pools import make_pool
+from bpns.pools import make_pool, pool_map
 from bpns.structs import Task
 
 
@@ -369,7 +369,7 @@ def run_tasks(spec: EvalSpec, indices: Sequence[int], workers: int = 1) -> Itera
             _WORKER.clear()
         return
     with make_pool(min(workers, len(indices)), _init_worker, (spec,)) as pool:
-        yield from pool.map(_run_index, indices)
+        yield from pool_map(pool, _run_index, indices)
 
 
 def evaluate(

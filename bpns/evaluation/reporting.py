@@ -20,7 +20,7 @@ from bpns.evaluation.rollout_files import demonstration_of, rollouts_name, save_
 from bpns.execution.failures import MEANING
 from bpns.execution.rollouts import Rollout
 from bpns.execution.video import render_rollout
-from bpns.pools import make_pool
+from bpns.pools import make_pool, result_of
 
 
 def solved_line(report: EvalReport) -> str:
@@ -168,9 +168,11 @@ def render_longest_solved(
     # Rendered in a fresh worker: writing the mp4 forks ffmpeg, and a fork of a parent that
     # holds a thousand loaded demonstrations fails with ENOMEM (`bpns run` at 1000 demos).
     with make_pool(1) as pool:
-        n = pool.submit(
-            _render_task, env.name, outcome.world, seed, train, outcome, camera, video, png
-        ).result()
+        n = result_of(
+            pool.submit(
+                _render_task, env.name, outcome.world, seed, train, outcome, camera, video, png
+            )
+        )
     return SolvedVideo(video, png, n, report.label, outcome)
 
 

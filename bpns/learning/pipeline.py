@@ -33,7 +33,7 @@ from bpns.learning.samplers import (
 from bpns.learning.segmentation import segment_demonstration
 from bpns.learning.sharing import shared_data
 from bpns.nets.mlp import train_classifier, train_gaussian
-from bpns.pools import make_pool
+from bpns.pools import make_pool, result_of
 from bpns.structs import Demonstration, Predicate, Segment, Skill, STRIPSOperator, Type
 
 STAGES = ("segment", "partition", "operators", "policies", "samplers")
@@ -434,7 +434,7 @@ class _Trainer:
     def results(self) -> list[TrainedNetwork]:
         """Every submitted job's network, in submission order."""
         t0 = time.perf_counter()
-        out = [p.result() if isinstance(p, Future) else p for p in self._pending]
+        out = [result_of(p) if isinstance(p, Future) else p for p in self._pending]
         self.seconds += time.perf_counter() - t0
         return out
 
