@@ -48,20 +48,40 @@ WORKER_DIED = (
 )
 
 
-def result_of(future: Future[R]) -> R:
+def worker_died(job: str | None = None) -> WorkerDiedError:
+    """The error for a dead worker; ``job`` names what was unfinished (e.g. "task 3")."""
+    if job is None:
+        return WorkerDiedError(WORKER_DIED)
+    return WorkerDiedError(
+        WORKER_DIED.replace("abruptly", f"abruptly while {job} was unfinished", 1)
+    )
+
+
+def result_of(future: Future[R], job: str | None = None) -> R:
     """``future.result()``, a dead worker reported as :class:`WorkerDiedError`."""
     try:
         return future.result()
     except BrokenProcessPool:
-        raise WorkerDiedError(WORKER_DIED) from None
+        raise worker_died(job) from None
 
 
-def pool_map(pool: Executor, fn: Callable[[T], R], items: Iterable[T]) -> Iterator[R]:
-    """``pool.map(fn, items)``, a dead worker reported as :class:`WorkerDiedError`."""
+def pool_map(
+    pool: Executor,
+    fn: Callable[[T], R],
+    items: Iterable[T],
+    name: Callable[[T], str] | None = None,
+) -> Iterator[R]:
+    """``pool.map(fn, items)`` in order, a dead worker reported as
+    :class:`WorkerDiedError` naming (``name(item)``) the first item not yet returned."""
+    items = list(items)
+    done = 0
     try:
-        yield from pool.map(fn, items)
+        for out in pool.map(fn, items):
+            yield out
+            done += 1
     except BrokenProcessPool:
-        raise WorkerDiedError(WORKER_DIED) from None
+        job = name(items[done]) if name is not None and done < len(items) else None
+        raise worker_died(job) from None
 
 
 def max_workers() -> int:

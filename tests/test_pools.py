@@ -40,10 +40,12 @@ def test_a_worker_killed_mid_job_is_one_clear_error_naming_the_fix(how):
             if how == "bounded_map":
                 list(bounded_map(pool, _die_on_two, range(5), in_flight=1))
             elif how == "pool_map":
-                list(pool_map(pool, _die_on_two, range(5)))
+                list(pool_map(pool, _die_on_two, range(5), name=lambda i: f"task {i}"))
             else:
                 result_of(pool.submit(_die_on_two, 2))
     assert "Traceback" not in str(err.value) and "\n" not in str(err.value)
+    if how == "pool_map":
+        assert "while task 2 was unfinished" in str(err.value)
 
 
 def test_worker_counts_are_capped_at_the_cpu_count():

@@ -369,7 +369,7 @@ def run_tasks(spec: EvalSpec, indices: Sequence[int], workers: int = 1) -> Itera
             _WORKER.clear()
         return
     with make_pool(min(workers, len(indices)), _init_worker, (spec,)) as pool:
-        yield from pool_map(pool, _run_index, indices)
+        yield from pool_map(pool, _run_index, indices, name=lambda i: f"eval task {i}")
 
 
 def evaluate(

@@ -410,6 +410,7 @@ class _Trainer:
         self.seconds = 0.0
         self._pool: Executor | None = None
         self._pending: list[Future[TrainedNetwork] | TrainedNetwork] = []
+        self._stages: list[str] = []  # what each job trains, for an error that names it
 
     def __enter__(self) -> _Trainer:
         return self
@@ -428,13 +429,19 @@ class _Trainer:
             if self._pool is None:
                 self._pool = make_pool(self.workers)
             self._pending.append(self._pool.submit(train_network, job))
+        self._stages.append(job.stage)
         self.seconds += time.perf_counter() - t0
         return len(self._pending) - 1
 
     def results(self) -> list[TrainedNetwork]:
         """Every submitted job's network, in submission order."""
         t0 = time.perf_counter()
-        out = [result_of(p) if isinstance(p, Future) else p for p in self._pending]
+        out = [
+            result_of(p, f"network {i + 1} of {len(self._pending)} ({self._stages[i]})")
+            if isinstance(p, Future)
+            else p
+            for i, p in enumerate(self._pending)
+        ]
         self.seconds += time.perf_counter() - t0
         return out
 
