@@ -43,7 +43,7 @@ class WorkerDiedError(BpnsError, RuntimeError):
 
 WORKER_DIED = (
     "a worker process died abruptly (killed, most often by the kernel's out-of-memory "
-    "killer, or crashed in native code); what had finished before is kept. Rerun with "
+    "killer, or crashed in native code); no half-written output is left. Rerun with "
     "fewer --workers, or look for 'Out of memory' in `dmesg`"
 )
 
