@@ -7,6 +7,9 @@ display, no pyplot state) and written atomically as PNG and SVG.
   count (a small offset on the log axis) so that equal values stay visible.
 - success vs a perturbation (a sweep with ``--perturb-axis``): per environment, solved
   at each level of the axis, one line per approach.
+- success vs world (a sweep with ``--worlds``): per environment, the pooled share of
+  eval tasks solved in each world with its Wilson 95 % interval, one line per approach
+  (and demo count) and execution: closed loop solid, open loop dashed.
 - success vs planning time: per environment, the percentage of eval tasks solved within
   t seconds, mean over seeds with a ± std band; learning approaches at their largest
   demo count.
@@ -149,6 +152,55 @@ def success_vs_perturbation(rows: Sequence[Row]) -> Figure:
         ax.set_xticks(levels, [f"{v:g}" for v in levels])
         ax.set_ylim(-3, 103)
         ax.set_xlabel(AXIS_LABELS.get(axis, axis))
+        ax.set_ylabel("eval tasks solved (%)")
+        ax.set_title(env)
+        ax.grid(alpha=0.3)
+    _legend_below(fig, axes)
+    return fig
+
+
+def success_vs_world(rows: Sequence[Row]) -> Figure:
+    """Model against world: per environment, tasks solved (pooled over seeds, Wilson 95 %
+    interval) in each swept world, closed loop solid and open loop dashed."""
+    envs = list(dict.fromkeys(r.env for r in rows))
+    colours = _colours(rows)
+    fig, axes = _panels(len(envs), "Success by world (pooled over seeds, Wilson 95 % interval)")
+    for ax, env in zip(axes, envs, strict=True):
+        mine = [r for r in rows if r.env == env and r.world is not None]
+        worlds = list(dict.fromkeys(r.world for r in mine))
+        lines = list(dict.fromkeys((r.approach, r.demos, r.execution) for r in mine))
+        for i, (approach, demos, execution) in enumerate(lines):
+            line = {
+                r.world: r
+                for r in mine
+                if (r.approach, r.demos, r.execution) == (approach, demos, execution)
+            }
+            xs = [k for k, w in enumerate(worlds) if w in line]
+            dodge = 0.06 * (i - (len(lines) - 1) / 2)  # equal values stay visible
+            ys, lows, highs = [], [], []
+            for k in xs:
+                r = line[worlds[k]]
+                solved, trials = r.pooled
+                low, high = r.pooled_interval
+                y = 100.0 * solved / trials if trials else float("nan")
+                ys.append(y)
+                lows.append(y - 100.0 * low)
+                highs.append(100.0 * high - y)
+            first = line[worlds[xs[0]]]
+            label = first.label + ("" if demos is None else f" ({demos} demos)")
+            ax.errorbar(
+                [k + dodge for k in xs],
+                ys,
+                yerr=[lows, highs],
+                color=colours[approach],
+                ls="--" if execution == "open-loop" else "-",
+                marker=MARKERS[i % len(MARKERS)],
+                capsize=4,
+                label=f"{label}, {execution or 'closed-loop'} ({len(first.seeds)} seeds)",
+            )
+        ax.set_xticks(range(len(worlds)), worlds)
+        ax.set_ylim(-3, 103)
+        ax.set_xlabel("world")
         ax.set_ylabel("eval tasks solved (%)")
         ax.set_title(env)
         ax.grid(alpha=0.3)

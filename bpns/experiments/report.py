@@ -17,12 +17,14 @@ from bpns.experiments.plots import (
     success_vs_demos,
     success_vs_perturbation,
     success_vs_time,
+    success_vs_world,
 )
 from bpns.experiments.presets import PRESETS, SweepConfig
 from bpns.experiments.store import CellStore
 
 FIG_DEMOS = "success_vs_demos"
 FIG_TIME = "success_vs_time"
+FIG_WORLD = "success_vs_world"
 
 
 def stored_eval_records(cells: Sequence[Cell], store: CellStore) -> list[dict[str, Any]]:
@@ -43,6 +45,9 @@ def write_report(
     if rows and config.perturb_axis is not None:  # the axis' figure instead
         figures = [(f"success_vs_{config.perturb_axis[0]}", f"success vs {config.perturb_axis[0]}")]
         written += save_figure(success_vs_perturbation(rows), out / figures[0][0])
+    elif rows and config.worlds:  # one figure per world would mix them: one of worlds
+        figures = [(FIG_WORLD, "success by world, closed and open loop")]
+        written += save_figure(success_vs_world(rows), out / FIG_WORLD)
     elif rows:
         written += save_figure(success_vs_demos(rows), out / FIG_DEMOS)
         written += save_figure(success_vs_time(rows, config.timeout), out / FIG_TIME)

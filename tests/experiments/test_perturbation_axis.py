@@ -11,7 +11,7 @@ from bpns.cli import main
 from bpns.env.perturbations import Perturbation
 from bpns.experiments.aggregate import aggregate, markdown_table
 from bpns.experiments.cells import EVAL
-from bpns.experiments.plots import save_figure, success_vs_perturbation
+from bpns.experiments.plots import save_figure, success_vs_perturbation, success_vs_world
 from bpns.experiments.presets import SweepConfigError
 from bpns.experiments.sweep import sweep_cells
 from tests.experiments.test_sweeps import TINY, _eval_record
@@ -82,3 +82,34 @@ def test_the_robustness_figure_draws_success_at_each_level_per_approach(tmp_path
     assert ax.get_xlabel() == "friction scale"
     paths = save_figure(fig, tmp_path / "robust")
     assert all(p.stat().st_size > 0 for p in paths)
+
+
+def _world_record(approach: str, demos: int | None, world: str, execution: str, solved: int):
+    """An eval cell of 4 tasks in world ``world`` executed ``execution``."""
+    record = _eval_record(0, approach, demos, [1.0] * solved + [None] * (4 - solved))
+    record["settings"].update(world=world, execution=execution)
+    return record
+
+
+def test_the_world_figure_pools_each_world_closed_solid_open_dashed_with_intervals():
+    records = [
+        _world_record("oracle", None, w, e, n)
+        for w, e, n in [
+            ("nominal", "closed-loop", 4),
+            ("hard", "closed-loop", 3),
+            ("nominal", "open-loop", 4),
+            ("hard", "open-loop", 1),
+        ]
+    ]
+    fig = success_vs_world(aggregate(records))
+    (ax,) = fig.axes
+    got = {c.get_label().split(" (")[0]: c for c in ax.containers}
+    closed, opened = got["Oracle, closed-loop"], got["Oracle, open-loop"]
+    assert [round(y) for y in closed.lines[0].get_ydata()] == [100, 75]
+    assert [round(y) for y in opened.lines[0].get_ydata()] == [100, 25]
+    assert closed.lines[0].get_linestyle() == "-" and opened.lines[0].get_linestyle() == "--"
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["nominal", "hard"]
+    # the bars are the Wilson interval of 1 of 4: about [4.6, 69.9] %
+    (bars,) = opened.lines[2]
+    lows = [seg[0][1] for seg in bars.get_segments()]
+    assert 4 < min(lows) < 5
