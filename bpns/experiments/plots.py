@@ -184,8 +184,8 @@ def success_vs_world(rows: Sequence[Row]) -> Figure:
                 low, high = r.pooled_interval
                 y = 100.0 * solved / trials if trials else float("nan")
                 ys.append(y)
-                lows.append(y - 100.0 * low)
-                highs.append(100.0 * high - y)
+                lows.append(max(0.0, y - 100.0 * low))  # 0 of n: low is 0 up to rounding
+                highs.append(max(0.0, 100.0 * high - y))
             first = line[worlds[xs[0]]]
             label = first.label + ("" if demos is None else f" ({demos} demos)")
             ax.errorbar(

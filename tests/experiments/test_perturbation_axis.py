@@ -84,9 +84,11 @@ def test_the_robustness_figure_draws_success_at_each_level_per_approach(tmp_path
     assert all(p.stat().st_size > 0 for p in paths)
 
 
-def _world_record(approach: str, demos: int | None, world: str, execution: str, solved: int):
-    """An eval cell of 4 tasks in world ``world`` executed ``execution``."""
-    record = _eval_record(0, approach, demos, [1.0] * solved + [None] * (4 - solved))
+def _world_record(
+    approach: str, demos: int | None, world: str, execution: str, solved: int, tasks: int = 4
+):
+    """An eval cell of ``tasks`` tasks in world ``world`` executed ``execution``."""
+    record = _eval_record(0, approach, demos, [1.0] * solved + [None] * (tasks - solved))
     record["settings"].update(world=world, execution=execution)
     return record
 
@@ -113,3 +115,14 @@ def test_the_world_figure_pools_each_world_closed_solid_open_dashed_with_interva
     (bars,) = opened.lines[2]
     lows = [seg[0][1] for seg in bars.get_segments()]
     assert 4 < min(lows) < 5
+
+
+def test_the_world_figure_draws_worlds_where_all_or_nothing_was_solved():
+    # Wilson's upper bound of 20 of 20 is 1 only up to rounding: no negative error bar
+    records = [
+        _world_record("bpns", 3, w, "open-loop", n, tasks=20)
+        for w, n in [("nominal", 20), ("hard", 0)]
+    ]
+    (ax,) = success_vs_world(aggregate(records)).axes
+    (container,) = ax.containers
+    assert [round(y) for y in container.lines[0].get_ydata()] == [100, 0]
