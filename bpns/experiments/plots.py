@@ -184,7 +184,8 @@ def success_vs_world(rows: Sequence[Row]) -> Figure:
                 low, high = r.pooled_interval
                 y = 100.0 * solved / trials if trials else float("nan")
                 ys.append(y)
-                lows.append(max(0.0, y - 100.0 * low))  # 0 of n: low is 0 up to rounding
+                # n of n: Wilson's upper bound is 1 only up to rounding
+                lows.append(max(0.0, y - 100.0 * low))
                 highs.append(max(0.0, 100.0 * high - y))
             first = line[worlds[xs[0]]]
             label = first.label + ("" if demos is None else f" ({demos} demos)")

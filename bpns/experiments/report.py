@@ -45,7 +45,7 @@ def write_report(
     if rows and config.perturb_axis is not None:  # the axis' figure instead
         figures = [(f"success_vs_{config.perturb_axis[0]}", f"success vs {config.perturb_axis[0]}")]
         written += save_figure(success_vs_perturbation(rows), out / figures[0][0])
-    elif rows and config.worlds:  # one figure per world would mix them: one of worlds
+    elif rows and config.worlds:  # the demos and time figures would mix the worlds
         figures = [(FIG_WORLD, "success by world, closed and open loop")]
         written += save_figure(success_vs_world(rows), out / FIG_WORLD)
     elif rows:
