@@ -28,12 +28,12 @@ goes to stdout. The environment is the one the skills directory records.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from bpns.acting.config import ExecutionConfig
 from bpns.baselines.gnn_meta import label_segment
 from bpns.data.datasets import iter_demonstrations
 from bpns.env.environment import adopt_state, perturbed
@@ -78,7 +78,9 @@ def main() -> None:
     settle = learning_config_for(env).settle_steps
     config = planning_config_for(env)
     world = perturbed(env, parse_perturbation(args.perturb))
-    limits = dataclasses.replace(RolloutConfig.of(config), horizon_scale=args.horizon_scale)
+    limits = ExecutionConfig(horizon_scale=args.horizon_scale).world_limits(
+        RolloutConfig.of(config)
+    )
     rng = np.random.default_rng(args.seed)
     tallies: dict[str, SkillTally] = defaultdict(SkillTally)
     indices = range(args.first, args.first + args.count)

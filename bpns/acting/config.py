@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 from bpns.errors import BpnsError
+from bpns.execution.executor import RolloutConfig
 
 MODES = ("closed-loop", "open-loop")
 
@@ -57,6 +59,11 @@ class ExecutionConfig:
             raise ExecutionConfigError(
                 f"horizon_scale must be finite and >= 1, got {self.horizon_scale}"
             )
+
+    def world_limits(self, limits: RolloutConfig) -> RolloutConfig:
+        """``limits`` (the planner's, for the model) as a skill executing in the world
+        gets them: its horizon times ``horizon_scale``."""
+        return dataclasses.replace(limits, horizon_scale=self.horizon_scale)
 
     @property
     def mode(self) -> str:

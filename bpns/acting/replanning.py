@@ -331,5 +331,5 @@ def world_run(
     skill's horizon scaled by ``execution.horizon_scale``."""
     limits = RolloutConfig.of(config)
     if execution is not None:
-        limits = dataclasses.replace(limits, horizon_scale=execution.horizon_scale)
+        limits = execution.world_limits(limits)
     return WorldRun(env, task, limits, deadline)

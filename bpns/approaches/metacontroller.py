@@ -147,7 +147,7 @@ class Metacontroller(Approach):
         executor = SkillExecutor(self.env, task, config, deadline)
         world_config = config
         if world_env is not None and execution is not None:
-            world_config = dataclasses.replace(config, horizon_scale=execution.horizon_scale)
+            world_config = execution.world_limits(config)
         run = WorldRun(world_env or self.env, task, world_config, deadline)
         history: list[SkillChoice] = []
         samples = replans = 0

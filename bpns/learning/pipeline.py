@@ -409,8 +409,8 @@ class _Trainer:
         self.workers = workers
         self.seconds = 0.0
         self._pool: Executor | None = None
-        self._pending: list[Future[TrainedNetwork] | TrainedNetwork] = []
-        self._stages: list[str] = []  # what each job trains, for an error that names it
+        # each job's network (or its future) and its stage, for an error that names it
+        self._pending: list[tuple[Future[TrainedNetwork] | TrainedNetwork, str]] = []
 
     def __enter__(self) -> _Trainer:
         return self
@@ -424,23 +424,21 @@ class _Trainer:
         """Start ``job``; its index in :meth:`results`."""
         t0 = time.perf_counter()
         if self.workers <= 1:
-            self._pending.append(train_network(job))
+            self._pending.append((train_network(job), job.stage))
         else:
             if self._pool is None:
                 self._pool = make_pool(self.workers)
-            self._pending.append(self._pool.submit(train_network, job))
-        self._stages.append(job.stage)
+            self._pending.append((self._pool.submit(train_network, job), job.stage))
         self.seconds += time.perf_counter() - t0
         return len(self._pending) - 1
 
     def results(self) -> list[TrainedNetwork]:
         """Every submitted job's network, in submission order."""
         t0 = time.perf_counter()
+        n = len(self._pending)
         out = [
-            result_of(p, f"network {i + 1} of {len(self._pending)} ({self._stages[i]})")
-            if isinstance(p, Future)
-            else p
-            for i, p in enumerate(self._pending)
+            result_of(p, f"network {i + 1} of {n} ({stage})") if isinstance(p, Future) else p
+            for i, (p, stage) in enumerate(self._pending)
         ]
         self.seconds += time.perf_counter() - t0
         return out
