@@ -156,9 +156,9 @@ def loadable(config: SweepConfig, args: argparse.Namespace):
     its environments built: a preset (which takes every installed plugin) skips each
     broken one with one warning line; one named on the command line is an error."""
     from bpns.approaches import get_approach
-    from bpns.env.registry import PluginError, make_environment
+    from bpns.env.registry import EnvironmentDeclarationError, PluginError, make_environment
 
-    def skip(err: PluginError, named: bool) -> None:
+    def skip(err: PluginError | EnvironmentDeclarationError, named: bool) -> None:
         if named:
             raise UserError(str(err)) from None
         print(f"bpns: warning: {err}; the sweep skips it", file=sys.stderr, flush=True)
@@ -167,7 +167,7 @@ def loadable(config: SweepConfig, args: argparse.Namespace):
     for name in config.envs:
         try:
             envs[name] = make_environment(name)
-        except PluginError as err:
+        except (PluginError, EnvironmentDeclarationError) as err:
             skip(err, args.env is not None)
     approaches = []
     for name in config.approaches:

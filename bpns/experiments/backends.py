@@ -2,29 +2,31 @@
 
 Both run :func:`bpns.experiments.work.run_cell_safely` on a :class:`CellJob` and hand
 back ``(token, CellOutcome)`` pairs as cells finish, in completion order. A cell runs
-in a fresh worker process: the pool's workers start from a forkserver (not forked from
-the scheduler, which may hold a large environment) and each is replaced after one cell,
-so the memory of a learning cell goes back to the system before the next cell starts.
-A worker exits when the scheduler dies (:func:`bpns.pools.die_with`), so a killed sweep
-leaves no cell running.
+in a fresh process started from a forkserver (not forked from the scheduler, which may
+hold a large environment), so the memory of a learning cell goes back to the system
+before the next cell starts. A cell process exits when the scheduler dies
+(:func:`bpns.pools.die_with`), so a killed sweep leaves no cell running; a cell process
+that dies (killed, crashed) is that cell's failure, never a hang.
 """
 
 from __future__ import annotations
 
+import collections
 import contextlib
+import dataclasses
 import itertools
 import multiprocessing
+import multiprocessing.connection as mp_connection
 import os
-import queue
 import socket
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any, Protocol
 
 from bpns.errors import BpnsError
 from bpns.experiments.work import CellJob, CellOutcome, run_cell_safely
-from bpns.pools import die_with
+from bpns.pools import WORKER_DIED, die_with, worker_context
 
 
 class BackendError(BpnsError, RuntimeError):
@@ -40,53 +42,107 @@ class Backend(Protocol):
 
 
 class PoolBackend:
-    """``workers`` cells at a time in local processes."""
+    """``workers`` cells at a time, each in a fresh local process.
 
-    def __init__(self, workers: int = 1, start_method: str = "forkserver") -> None:
+    One process per cell (not a ``multiprocessing.Pool``): when a process dies without
+    an answer (the OOM killer, a native crash, ``kill -9``) the backend knows exactly
+    which cell it held and reports that cell as failed; a pool would lose the task and
+    wait for it forever. Processes start from :func:`bpns.pools.worker_context`
+    (forkserver), never forked from a scheduler that may hold a large environment.
+    """
+
+    def __init__(
+        self,
+        workers: int = 1,
+        start_method: str | None = None,
+        run: Callable[[CellJob], CellOutcome] = run_cell_safely,
+    ) -> None:
+        """``run`` is what a cell process calls on its job (a module-level function)."""
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
-        ctx = multiprocessing.get_context(start_method)
-        self._pool = ctx.Pool(
-            processes=workers,
-            maxtasksperchild=1,
-            initializer=die_with,  # a killed sweep leaves no cell running
-            initargs=(os.getpid(),),
-        )
-        self._finished: queue.Queue[tuple[int, CellOutcome | BaseException]] = queue.Queue()
+        self._ctx = multiprocessing.get_context(start_method) if start_method else worker_context()
+        self._workers = workers
+        self._run = run
+        self._waiting: collections.deque[tuple[int, CellJob]] = collections.deque()
+        self._running: dict[int, _Running] = {}
         self._tokens = itertools.count()
-        self._pending = 0
 
     def submit(self, job: CellJob) -> int:
         token = next(self._tokens)
-        self._pool.apply_async(
-            run_cell_safely,
-            (job,),
-            callback=lambda outcome: self._finished.put((token, outcome)),
-            error_callback=lambda err: self._finished.put((token, err)),
-        )
-        self._pending += 1
+        self._waiting.append((token, job))
+        self._start_waiting()
         return token
 
+    def _start_waiting(self) -> None:
+        while self._waiting and len(self._running) < self._workers:
+            token, job = self._waiting.popleft()
+            receiver, sender = self._ctx.Pipe(duplex=False)
+            process = self._ctx.Process(
+                target=_run_cell_in_child,
+                args=(self._run, job, sender, os.getpid()),
+                name=f"bpns-cell-{token}",
+                daemon=True,
+            )
+            process.start()
+            sender.close()  # the child holds the only writing end: EOF when it dies
+            self._running[token] = _Running(process, receiver)
+
     def next_finished(self) -> tuple[int, CellOutcome]:
-        if self._pending == 0:
+        if not self._running:
             raise RuntimeError("no cell is running")
-        while True:
-            try:  # a timeout keeps Ctrl-C responsive
-                token, outcome = self._finished.get(timeout=0.5)
+        while True:  # a timeout keeps Ctrl-C responsive
+            ready = mp_connection.wait([r.receiver for r in self._running.values()], 0.5)
+            if ready:
                 break
-            except queue.Empty:
-                continue
-        self._pending -= 1
-        if isinstance(outcome, BaseException):  # the worker died or could not unpickle
-            outcome = CellOutcome(None, f"{type(outcome).__name__}: {outcome}", 0.0, "")
+        token = next(t for t, r in self._running.items() if r.receiver in ready)
+        running = self._running.pop(token)
+        try:
+            outcome = running.receiver.recv()
+        except (EOFError, OSError):  # it died before it could answer
+            running.process.join()
+            outcome = CellOutcome(None, _died(running.process.exitcode), 0.0, "")
+        else:
+            running.process.join()
+        running.receiver.close()
+        self._start_waiting()
         return token, outcome
 
     def close(self, cancel: bool) -> None:
-        if cancel:
-            self._pool.terminate()
-        else:
-            self._pool.close()
-        self._pool.join()
+        self._waiting.clear()
+        for running in self._running.values():
+            if cancel:
+                running.process.kill()
+            running.process.join()
+            running.receiver.close()
+        self._running.clear()
+
+
+@dataclasses.dataclass
+class _Running:
+    process: multiprocessing.process.BaseProcess
+    receiver: mp_connection.Connection
+
+
+def _run_cell_in_child(
+    run: Callable[[CellJob], CellOutcome],
+    job: CellJob,
+    sender: mp_connection.Connection,
+    creator: int,
+) -> None:
+    die_with(creator)  # a killed sweep leaves no cell running
+    outcome = run(job)
+    sender.send(outcome)
+    sender.close()
+
+
+def _died(exitcode: int | None) -> str:
+    """The error of a cell whose process ended without an answer."""
+    how = (
+        f"killed by signal {-exitcode}"
+        if exitcode is not None and exitcode < 0
+        else f"exit code {exitcode}"
+    )
+    return f"WorkerDiedError: the cell's process ended without a result ({how}); " + WORKER_DIED
 
 
 #: seconds to wait for a Ray cluster's address to accept a connection

@@ -17,19 +17,23 @@ PLUGINS = {
     "unparsable": "h24_unparsable:Env",
     "raising": "h24_raising:Env",
 }
+# builds, but lacks the contract's declarations (capabilities, contact_settle_steps)
+UNDECLARED = {"undeclared": "h24_undeclared:Env"}
 
 
 @pytest.fixture
 def broken_plugins(tmp_path, monkeypatch):
-    """A distribution declaring three broken environments and one broken approach."""
+    """A distribution declaring four broken environments and one broken approach."""
     (tmp_path / "h24_unparsable.py").write_text("def (:\n")
     (tmp_path / "h24_raising.py").write_text(
         "class Env:\n    def __init__(self):\n        raise RuntimeError('needs a GPU')\n"
     )
+    (tmp_path / "h24_undeclared.py").write_text("class Env:\n    name = 'undeclared'\n")
     info = tmp_path / "h24_broken-0.dist-info"
     info.mkdir()
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: h24-broken\nVersion: 0\n")
-    lines = ["[bpns.environments]", *(f"{n} = {v}" for n, v in PLUGINS.items())]
+    declared = {**PLUGINS, **UNDECLARED}
+    lines = ["[bpns.environments]", *(f"{n} = {v}" for n, v in declared.items())]
     lines += ["[bpns.approaches]", "broken-approach = no_such_module_h24:ENTRY"]
     (info / "entry_points.txt").write_text("\n".join(lines) + "\n")
     monkeypatch.syspath_prepend(str(tmp_path))
@@ -98,11 +102,22 @@ def test_presets_skip_each_broken_plugin_with_one_warning(broken_plugins, tmp_pa
     )
     assert proc.returncode == 0, proc.stderr
     warnings = proc.stderr.strip().splitlines()
-    assert len(warnings) == 3 and all(w.startswith("bpns: warning: ") for w in warnings)
-    assert sorted(w.split("'")[1] for w in warnings) == sorted(PLUGINS)
+    assert len(warnings) == 4 and all(w.startswith("bpns: warning: ") for w in warnings)
+    assert sorted(w.split("'")[1] for w in warnings) == sorted({**PLUGINS, **UNDECLARED})
     assert all(w.endswith("; the sweep skips it") for w in warnings)
     assert "demos/cover-seed0" in proc.stdout
-    assert not any(f"/{n}-" in proc.stdout for n in PLUGINS)
+    assert not any(f"/{n}-" in proc.stdout for n in {**PLUGINS, **UNDECLARED})
+
+
+def test_an_environment_lacking_the_contracts_declarations_named_is_one_error_line(
+    broken_plugins, tmp_path, capsys
+):
+    argv = ["experiment", "--env", "undeclared", "--out", str(tmp_path / "w")]
+    code, err = run_cli(argv, capsys)
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    assert line.startswith("bpns: error: environment 'undeclared' lacks capabilities")
+    assert not (tmp_path / "w").exists()
 
 
 def test_presets_skip_a_broken_approach_plugin_with_one_warning(broken_plugins, tmp_path):

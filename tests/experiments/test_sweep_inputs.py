@@ -17,7 +17,7 @@ import time
 import pytest
 
 from bpns.experiments import backends, work
-from bpns.experiments.backends import BackendError, check_reachable, host_and_port
+from bpns.experiments.backends import BackendError, PoolBackend, check_reachable, host_and_port
 from bpns.experiments.cells import DEMOS, EVAL
 from bpns.experiments.presets import SweepConfig
 from bpns.experiments.store import FORMAT, RESULT_KEYS, CellStore, CellStoreError
@@ -180,7 +180,7 @@ SCHEDULER = """
 import sys, time
 from bpns.experiments.backends import PoolBackend
 import h24_sleeper
-PoolBackend(1)._pool.apply_async(h24_sleeper.sleep_here, (sys.argv[1],))
+PoolBackend(1, run=h24_sleeper.sleep_here).submit(sys.argv[1])
 time.sleep(120)
 """
 
@@ -207,6 +207,31 @@ def test_a_killed_scheduler_leaves_no_worker_running(tmp_path):
             break
         time.sleep(0.05)
     assert not _running(worker)
+
+
+def test_a_cell_whose_process_is_killed_is_that_cells_failure_not_a_hang():
+    backend = PoolBackend(1, run=signal.raise_signal)  # the cell kills its own process
+    try:
+        token = backend.submit(signal.SIGKILL)
+        done, outcome = backend.next_finished()
+    finally:
+        backend.close(cancel=True)
+    assert done == token
+    assert outcome.result is None
+    assert "WorkerDiedError" in outcome.error and "killed by signal 9" in outcome.error
+    assert "fewer --workers" in outcome.error
+
+
+def test_cells_beyond_the_worker_count_wait_and_all_finish():
+    backend = PoolBackend(2, run=abs)
+    try:
+        tokens = {backend.submit(-k): k for k in range(1, 6)}
+        finished = dict(backend.next_finished() for _ in tokens)
+    finally:
+        backend.close(cancel=False)
+    assert finished == tokens  # each token's own answer, none lost
+    with pytest.raises(RuntimeError, match="no cell is running"):
+        backend.next_finished()
 
 
 def _running(pid: int) -> bool:
