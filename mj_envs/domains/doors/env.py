@@ -3,7 +3,10 @@
 Rules (final, as simulated):
 
 * **Floor plan.** A full grid of rooms 2 m across (``rows x cols``, each drawn from
-  ``grid_sizes``, default {2, 3}: 4-9 rooms; the generator takes sizes up to 5). Walls
+  ``grid_sizes``, default {2, 3}: 4-9 rooms; the generator takes sizes up to 5), or, as
+  ``doors_paper`` (:class:`DoorsPaperEnv`), the paper's plans: 4-25 connected rooms of a
+  5x5 map joined by a random spanning tree of doorways plus each other shared wall with
+  probability 0.5, solid walls elsewhere (:class:`~mj_envs.domains.doors.scene.RoomMap`). Walls
   are 10 cm thick box geoms reaching from the floor (z = -0.75) to z = -0.10, below the
   arm's mounting plane (z = 0): only the base's pedestal (radius 22 cm) can hit them. Every
   wall between adjacent rooms has a 0.9 m doorway at its centre. Each room has 0-3 rotated
@@ -12,7 +15,8 @@ Rules (final, as simulated):
   and every approach lane runs, stays free. Train and eval tasks come from the same
   distribution (as in the paper): start near the centre of a random room (random yaw),
   goal ``InRoom(robot, another random room)``. Horizon 1500 steps, or 350 per door on
-  the longest room path of larger maps.
+  the longest room path of larger grids (on a room map: on the task's shortest room
+  path, plus one).
 * **Doors.** A leaf (a 5 cm board filling the doorway up to the wall top) on a slide joint
   along the wall: a *pocket door* that slides into the wall (the leaf collides with the
   robot but not with the walls; it slides towards the side where the wall line goes on
@@ -82,7 +86,15 @@ from mj_envs.domains.doors.rules import (
     TOUCHING_DOOR,
     required_angle,
 )
-from mj_envs.domains.doors.scene import build_xml, door_name, room_centre, room_name, sample_plan
+from mj_envs.domains.doors.scene import (
+    RoomMap,
+    build_xml,
+    door_name,
+    room_centre,
+    room_name,
+    sample_plan,
+    sample_room_map,
+)
 from mj_envs.domains.doors.skills import given_skills, oracle_skills
 from mj_envs.robots.mobile_panda import BaseConfig, BaseIds, base_pose, command_base
 from mj_envs.robots.panda import PANDA
@@ -112,12 +124,18 @@ class DoorsEnv(MujocoEnv):
         workspace_high=(0.8, 0.5, 0.45),
     )
 
-    def __init__(self, grid_sizes: tuple[int, ...] = (2, 3)) -> None:
+    def __init__(
+        self, grid_sizes: tuple[int, ...] = (2, 3), room_map: RoomMap | None = None
+    ) -> None:
+        """Full ``rows x cols`` grids with sizes from ``grid_sizes``, or, given a
+        ``room_map``, the paper's floor plans (:class:`~mj_envs.domains.doors.scene.RoomMap`;
+        ``grid_sizes`` is then unused)."""
         if not grid_sizes or min(grid_sizes) < 1 or max(grid_sizes) > MAX_GRID:
             raise ValueError(f"grid sizes must lie in 1..{MAX_GRID}, got {grid_sizes}")
         if max(grid_sizes) < 2 and len(grid_sizes) == 1:
             raise ValueError("a 1x1 floor plan has no door")
         self.grid_sizes = tuple(int(s) for s in grid_sizes)
+        self.room_map = room_map
 
     # -- declarations ------------------------------------------------------------------
     @property
@@ -160,12 +178,21 @@ class DoorsEnv(MujocoEnv):
 
     @property
     def max_objects(self) -> dict[str, int]:
+        if self.room_map is not None:
+            spec = self.room_map
+            return {"robot": 1, "door": spec.max_doors, "room": spec.rooms[1]}
         n = max(self.grid_sizes)
         return {"robot": 1, "door": 2 * n * (n - 1), "room": n * n}
 
     # -- tasks ------------------------------------------------------------------------
     def sample_layout(self, rng: np.random.Generator, train: bool) -> TaskLayout:
-        plan = sample_plan(rng, self.grid_sizes)
+        if self.room_map is None:
+            plan = sample_plan(rng, self.grid_sizes)
+            # the longest room path crosses rows + cols - 2 doors
+            doors_on_path = plan.rows + plan.cols - 2
+        else:
+            plan = sample_room_map(rng, self.room_map)
+            doors_on_path = plan.doors_between(plan.start_room, plan.goal_room) + 1
         n = len(plan.doors)
         xml = build_xml(plan, self.base_config, n)
         robot = Object("robot", ROBOT)
@@ -176,8 +203,7 @@ class DoorsEnv(MujocoEnv):
             xml=xml,
             objects=(robot, *doors, *rooms),
             goal=goal,
-            # the longest room path crosses rows + cols - 2 doors
-            horizon=max(HORIZON, STEPS_PER_DOOR * (plan.rows + plan.cols - 2)),
+            horizon=max(HORIZON, STEPS_PER_DOOR * doors_on_path),
             init_qpos={f"door{k}_handle_joint": np.array([HANDLE_REST]) for k in range(n)},
             init_userdata={
                 DOMAIN_USERDATA_START + k: d.target_rot for k, d in enumerate(plan.doors)
@@ -313,3 +339,15 @@ class DoorsEnv(MujocoEnv):
     # -- the domain's oracles ----------------------------------------------------------
     def demonstrator(self, task: Task, rng: np.random.Generator) -> DoorsDemonstrator:
         return DoorsDemonstrator(task)
+
+
+class DoorsPaperEnv(DoorsEnv):
+    """Doors on the paper's floor plans (App. A: "4-25 rooms with random connectivity"):
+    4-25 connected rooms of a 5x5 map, a spanning tree of doorways plus each other shared
+    wall with probability 0.5. Train and eval tasks come from this one distribution, as
+    in the paper."""
+
+    name = "doors_paper"
+
+    def __init__(self, room_map: RoomMap | None = None) -> None:
+        super().__init__(room_map=RoomMap() if room_map is None else room_map)

@@ -1,10 +1,18 @@
 """Doors' floor plans: sampling (rooms, doors, obstacles) and their MJCF.
 
-A plan is a full grid of ``rows x cols`` rooms, cell (i, j) centred at
-(ROOM_SIZE * (i + 0.5), ROOM_SIZE * (j + 0.5)). Every wall between two adjacent rooms has
-one doorway at its centre with a sliding leaf and a handle on the wall top beside it. Each
-room has 0-3 rotated box obstacles in its corner zones, which keeps the cross-shaped band
-through the room's centre (where the robot starts and every approach lane runs) free.
+Cell (i, j) of a plan is the room centred at (ROOM_SIZE * (i + 0.5), ROOM_SIZE * (j + 0.5)).
+Two kinds of plan:
+
+* :func:`sample_plan`: a full grid of ``rows x cols`` rooms; every wall between two
+  adjacent rooms has one doorway at its centre (today's default maps).
+* :func:`sample_room_map`: the paper's (App. A: "4-25 rooms with random connectivity"):
+  a random connected set of cells of a ``size x size`` map, its shared walls joined by a
+  random spanning tree of doorways plus each other shared wall with probability
+  ``door_fraction``; every other wall is solid. :class:`RoomMap` holds the parameters.
+
+A doorway has a sliding leaf and a handle on the wall top beside it. Each room has 0-3
+rotated box obstacles in its corner zones, which keeps the cross-shaped band through the
+room's centre (where the robot starts and every approach lane runs) free.
 """
 
 from __future__ import annotations
@@ -63,16 +71,65 @@ class DoorSpec:
 
 @dataclass(frozen=True)
 class FloorPlan:
-    rows: int  # cells along x
+    rows: int  # cells along x (of the bounding grid)
     cols: int  # cells along y
     doors: tuple[DoorSpec, ...]
     obstacles: tuple[tuple[float, float, float, float, float], ...]  # x, y, yaw, hx, hy
     start: tuple[float, float, float]  # base x, y, yaw
     start_room: tuple[int, int]
     goal_room: tuple[int, int]
+    # the rooms that exist, sorted; None: every cell of the rows x cols grid
+    cells: tuple[tuple[int, int], ...] | None = None
 
     def rooms(self) -> list[tuple[int, int]]:
+        if self.cells is not None:
+            return list(self.cells)
         return [(i, j) for i in range(self.rows) for j in range(self.cols)]
+
+    def doors_between(self, a: tuple[int, int], b: tuple[int, int]) -> int:
+        """The fewest doors crossed from room ``a`` to room ``b`` (BFS over doorways)."""
+        links: dict[tuple[int, int], list[tuple[int, int]]] = {r: [] for r in self.rooms()}
+        for d in self.doors:
+            links[d.a].append(d.b)
+            links[d.b].append(d.a)
+        depth, frontier = {a: 0}, [a]
+        while frontier:
+            nxt = []
+            for r in frontier:
+                for r2 in links[r]:
+                    if r2 not in depth:
+                        depth[r2] = depth[r] + 1
+                        nxt.append(r2)
+            frontier = nxt
+        if b not in depth:
+            raise ValueError(f"room {b} is not reachable from {a}")
+        return depth[b]
+
+
+@dataclass(frozen=True)
+class RoomMap:
+    """The paper's floor plans: ``rooms`` (inclusive range) connected cells of a
+    ``size x size`` map, joined by a spanning tree of doorways plus each other shared wall
+    with probability ``door_fraction`` (1: every shared wall has a door)."""
+
+    size: int = 5
+    rooms: tuple[int, int] = (4, 25)
+    door_fraction: float = 0.5
+
+    def __post_init__(self) -> None:
+        lo, hi = self.rooms
+        if not 2 <= self.size <= 8:
+            raise ValueError(f"room map size must lie in 2..8, got {self.size}")
+        if not 2 <= lo <= hi <= self.size**2:
+            raise ValueError(
+                f"room counts must satisfy 2 <= low <= high <= {self.size**2}, got {self.rooms}"
+            )
+        if not 0.0 <= self.door_fraction <= 1.0:  # (NaN fails too)
+            raise ValueError(f"door_fraction must lie in [0, 1], got {self.door_fraction}")
+
+    @property
+    def max_doors(self) -> int:
+        return 2 * self.size * (self.size - 1)
 
 
 def room_centre(cell: tuple[int, int]) -> tuple[float, float]:
@@ -113,8 +170,118 @@ def sample_plan(rng: np.random.Generator, sizes: tuple[int, ...]) -> FloorPlan:
                             float(rng.uniform(0, 1)),
                         )
                     )
+    obstacles = _sample_obstacles(rng, [(i, j) for i in range(rows) for j in range(cols)])
+    cells = [(i, j) for i in range(rows) for j in range(cols)]
+    a, b = rng.choice(len(cells), size=2, replace=False)
+    start_room, goal_room = cells[int(a)], cells[int(b)]
+    sx, sy = room_centre(start_room)
+    start = (
+        sx + rng.uniform(-START_JITTER, START_JITTER),
+        sy + rng.uniform(-START_JITTER, START_JITTER),
+        float(rng.uniform(-math.pi, math.pi)),
+    )
+    return FloorPlan(rows, cols, tuple(doors), tuple(obstacles), start, start_room, goal_room)
+
+
+NEIGHBOURS = ((1, 0), (-1, 0), (0, 1), (0, -1))
+
+
+def sample_room_map(rng: np.random.Generator, spec: RoomMap) -> FloorPlan:
+    """A floor plan of the paper's distribution (see :class:`RoomMap`): grow a connected
+    set of cells from a random one, a random frontier cell at a time; doorways on a random
+    spanning tree of their shared walls (so every room is reachable) plus each other
+    shared wall with probability ``spec.door_fraction``."""
+    n = spec.size
+    k = int(rng.integers(spec.rooms[0], spec.rooms[1] + 1))
+    cells = {(int(rng.integers(n)), int(rng.integers(n)))}
+    while len(cells) < k:
+        frontier = sorted(
+            {
+                (i + di, j + dj)
+                for i, j in cells
+                for di, dj in NEIGHBOURS
+                if 0 <= i + di < n and 0 <= j + dj < n and (i + di, j + dj) not in cells
+            }
+        )
+        cells.add(frontier[int(rng.integers(len(frontier)))])
+    i0, j0 = min(i for i, _ in cells), min(j for _, j in cells)
+    cells = {(i - i0, j - j0) for i, j in cells}  # the map starts at the origin
+    shared = sorted((a, (a[0] + di, a[1] + dj)) for a in cells for di, dj in ((1, 0), (0, 1)))
+    shared = [(a, b) for a, b in shared if b in cells]
+    parent = {c: c for c in cells}
+
+    def root(c: tuple[int, int]) -> tuple[int, int]:
+        while parent[c] != c:
+            c = parent[c]
+        return c
+
+    kept = set()
+    for idx in rng.permutation(len(shared)):  # Kruskal on random weights
+        a, b = shared[int(idx)]
+        ra, rb = root(a), root(b)
+        if ra != rb:
+            parent[ra] = rb
+            kept.add((a, b))
+        elif rng.random() < spec.door_fraction:
+            kept.add((a, b))
+    doors = [_door_spec(rng, a, b, cells) for a, b in shared if (a, b) in kept]
+    rooms = sorted(cells)
+    obstacles = _sample_obstacles(rng, rooms)
+    a, b = rng.choice(len(rooms), size=2, replace=False)
+    start_room, goal_room = rooms[int(a)], rooms[int(b)]
+    sx, sy = room_centre(start_room)
+    start = (
+        sx + rng.uniform(-START_JITTER, START_JITTER),
+        sy + rng.uniform(-START_JITTER, START_JITTER),
+        float(rng.uniform(-math.pi, math.pi)),
+    )
+    rows, cols = max(i for i, _ in rooms) + 1, max(j for _, j in rooms) + 1
+    return FloorPlan(
+        rows, cols, tuple(doors), tuple(obstacles), start, start_room, goal_room, tuple(rooms)
+    )
+
+
+def _door_spec(
+    rng: np.random.Generator,
+    a: tuple[int, int],
+    b: tuple[int, int],
+    cells: set[tuple[int, int]],
+) -> DoorSpec:
+    """The doorway between adjacent rooms ``a`` and ``b`` (b is a's +x or +y neighbour).
+
+    The leaf slides along -u into the wall line, 0.35 m past the room's corner: towards a
+    side where that wall line goes on (a wall of either cell beyond the corner hides it),
+    either way if both do."""
+    cx, cy = room_centre(a)
+    h = ROOM_SIZE / 2
+    along_y = b[0] == a[0] + 1  # the shared wall runs along y
+    if along_y:
+        (x, y), theta = (cx + h, cy), math.pi / 2
+        beyond = {s: ((a[0], a[1] + s), (b[0], b[1] + s)) for s in (1, -1)}
+    else:
+        (x, y), theta = (cx, cy + h), 0.0
+        beyond = {s: ((a[0] + s, a[1]), (b[0] + s, b[1])) for s in (1, -1)}
+    goes_on = {s: any(c in cells for c in beyond[s]) for s in (1, -1)}
+    flip = rng.random() < 0.5  # flip: u = -axis, the leaf slides towards +axis
+    if goes_on[1] != goes_on[-1]:
+        flip = goes_on[1]
+    return DoorSpec(
+        a,
+        b,
+        x,
+        y,
+        theta + (math.pi if flip else 0.0),
+        float(rng.uniform(*LEAF_MASS)),
+        float(rng.uniform(0, 1)),
+        float(rng.uniform(0, 1)),
+    )
+
+
+def _sample_obstacles(
+    rng: np.random.Generator, rooms: list[tuple[int, int]]
+) -> list[tuple[float, float, float, float, float]]:
     obstacles = []
-    for cell in [(i, j) for i in range(rows) for j in range(cols)]:
+    for cell in rooms:
         cx, cy = room_centre(cell)
         corners = rng.permutation(4)[: int(rng.integers(0, 4))]
         for k in corners:
@@ -128,16 +295,7 @@ def sample_plan(rng: np.random.Generator, sizes: tuple[int, ...]) -> FloorPlan:
                     float(rng.uniform(*OBSTACLE_HALF)),
                 )
             )
-    cells = [(i, j) for i in range(rows) for j in range(cols)]
-    a, b = rng.choice(len(cells), size=2, replace=False)
-    start_room, goal_room = cells[int(a)], cells[int(b)]
-    sx, sy = room_centre(start_room)
-    start = (
-        sx + rng.uniform(-START_JITTER, START_JITTER),
-        sy + rng.uniform(-START_JITTER, START_JITTER),
-        float(rng.uniform(-math.pi, math.pi)),
-    )
-    return FloorPlan(rows, cols, tuple(doors), tuple(obstacles), start, start_room, goal_room)
+    return obstacles
 
 
 def door_name(k: int) -> str:
@@ -226,10 +384,13 @@ def _wall(wb, name: str, centre: tuple[float, float], length: float, along_x: bo
 def _add_walls(wb, plan: FloorPlan) -> None:
     width, depth = plan.rows * ROOM_SIZE, plan.cols * ROOM_SIZE
     t = WALL_THICKNESS
-    _wall(wb, "wall_south", (width / 2, 0.0), width + t, True)
-    _wall(wb, "wall_north", (width / 2, depth), width + t, True)
-    _wall(wb, "wall_west", (0.0, depth / 2), depth + t, False)
-    _wall(wb, "wall_east", (width, depth / 2), depth + t, False)
+    if plan.cells is None:
+        _wall(wb, "wall_south", (width / 2, 0.0), width + t, True)
+        _wall(wb, "wall_north", (width / 2, depth), width + t, True)
+        _wall(wb, "wall_west", (0.0, depth / 2), depth + t, False)
+        _wall(wb, "wall_east", (width, depth / 2), depth + t, False)
+    else:
+        _add_solid_walls(wb, plan)
     seg = (ROOM_SIZE - DOORWAY_WIDTH) / 2
     for k, door in enumerate(plan.doors):
         along_x = abs(math.sin(door.theta)) < 0.5
@@ -237,6 +398,23 @@ def _add_walls(wb, plan: FloorPlan) -> None:
             off = sign * (DOORWAY_WIDTH / 2 + seg / 2)
             c = (door.x + off, door.y) if along_x else (door.x, door.y + off)
             _wall(wb, f"wall_door{k}_{s}", c, seg, along_x)
+
+
+def _add_solid_walls(wb, plan: FloorPlan) -> None:
+    """A room map's walls without a doorway: every side of a room with no room beyond
+    it, and every shared wall the plan has no door in (named ``wall_...``: the base's
+    motion planner avoids every geom so named)."""
+    cells = set(plan.rooms())
+    with_door = {frozenset((d.a, d.b)) for d in plan.doors}
+    h, length = ROOM_SIZE / 2, ROOM_SIZE + WALL_THICKNESS
+    for i, j in plan.rooms():
+        cx, cy = room_centre((i, j))
+        for di, dj in NEIGHBOURS:
+            other = (i + di, j + dj)
+            if other in cells and (other < (i, j) or frozenset(((i, j), other)) in with_door):
+                continue  # drawn from the other side, or a doorway's wall
+            centre = (cx + di * h, cy + dj * h)
+            _wall(wb, f"wall_{i}_{j}_{di}_{dj}", centre, length, along_x=dj != 0)
 
 
 def _add_door(arena, k: int, door: DoorSpec) -> None:
