@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import functools
 import os
 import shutil
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 
 import imageio.v2 as imageio
@@ -159,15 +160,21 @@ def _captioned(
             yield end
 
 
+#: characters of a caption considered at most; more cannot fit in a frame anyway
+MAX_CAPTION_CHARS = 4000
+
+
 def draw_caption(frame: np.ndarray, text: str, at_top: bool = False) -> np.ndarray:
     """``frame`` with ``text`` in white on a dark band along its bottom (or top; lines
-    wrap). Pillow's built-in font: nothing to install."""
+    wrap). Pillow's built-in font: nothing to install. The band covers at most half the
+    frame: a caption too long for it (a plan of hundreds of steps) ends in "...". The
+    wrapping is computed once per caption, not per frame (a video repeats each one)."""
     h, w = frame.shape[:2]
     size = max(10, min(22, w // 40))
-    font = ImageFont.load_default(size=size)
-    draw = ImageDraw.Draw(Image.fromarray(frame))
-    lines = _wrap(draw, font, text, w - 2 * size)
     line_h = size + size // 3
+    max_lines = max(1, (h // 2) // line_h)
+    lines = _wrapped(text, size, w - 2 * size, max_lines)
+    font = _font(size)
     top = size // 4 if at_top else h - line_h * len(lines) - size // 2
     band = frame.copy()
     rows = (
@@ -183,19 +190,63 @@ def draw_caption(frame: np.ndarray, text: str, at_top: bool = False) -> np.ndarr
     return np.asarray(img)
 
 
-def _wrap(draw, font, text: str, width: int) -> list[str]:
+@functools.lru_cache(maxsize=8)
+def _font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
+    return ImageFont.load_default(size=size)
+
+
+@functools.lru_cache(maxsize=256)
+def _wrapped(text: str, size: int, width: int, max_lines: int) -> tuple[str, ...]:
+    """``text`` wrapped at spaces into lines of at most ``width`` pixels (a word wider
+    than that is cut), at most ``max_lines`` of them, the last ending in "..." when
+    text was left out."""
+    font = _font(size)
+    draw = ImageDraw.Draw(Image.new("RGB", (1, 1)))
+
+    def fits(line: str) -> bool:
+        return draw.textlength(line, font=font) <= width
+
     lines: list[str] = []
-    for paragraph in text.split("\n"):
+    clipped = len(text) > MAX_CAPTION_CHARS
+    for paragraph in text[:MAX_CAPTION_CHARS].split("\n"):
         line = ""
         for word in paragraph.split(" "):
+            while word and not fits(word):  # cut a word wider than a line
+                cut = max(1, _longest_fitting_prefix(word, fits))
+                if line:
+                    lines.append(line)
+                    line = ""
+                lines.append(word[:cut])
+                word = word[cut:]
             trial = f"{line} {word}".strip()
-            if line and draw.textlength(trial, font=font) > width:
+            if line and not fits(trial):
                 lines.append(line)
                 line = word
             else:
                 line = trial
+            if len(lines) > max_lines:
+                break
         lines.append(line)
-    return lines
+        if len(lines) > max_lines:
+            break
+    if len(lines) > max_lines or clipped:
+        lines = lines[:max_lines]
+        last = lines[-1]
+        while last and not fits(last + " ..."):
+            last = last[:-1]
+        lines[-1] = last + " ..."
+    return tuple(lines)
+
+
+def _longest_fitting_prefix(word: str, fits: Callable[[str], bool]) -> int:
+    lo, hi = 0, len(word)  # fits(word[:lo]) holds, fits(word[:hi + 1]) does not
+    while lo < hi:
+        mid = (lo + hi + 1) // 2
+        if fits(word[:mid]):
+            lo = mid
+        else:
+            hi = mid - 1
+    return lo
 
 
 def render_rollout(

@@ -16,6 +16,7 @@ from bpns.cli import main
 from bpns.env.perturbations import Perturbation
 from bpns.evaluation.evaluate import EvalSpec, evaluate
 from bpns.evaluation.rollout_files import RolloutsFile, replay_rollouts, save_rollouts
+from bpns.execution import video
 from bpns.execution.rollouts import REACHED, PlanStep, outcome_caption, step_captions
 from bpns.execution.video import draw_caption, render_rollout
 from bpns.planning.config import planning_config_for
@@ -148,6 +149,18 @@ def test_a_caption_darkens_and_writes_only_its_band():
     assert np.array_equal(out[:60], frame[:60])
     band = out[-20:]
     assert band.min() < 100 and band.max() > 240  # dark band, white text
+
+
+def test_a_caption_too_long_for_the_frame_covers_at_most_half_of_it_and_ends_in_dots():
+    frame = np.full((240, 320, 3), 200, dtype=np.uint8)
+    plan = " ".join(f"Pick(robot, block{i})" for i in range(5000))  # a huge plan name
+    out = draw_caption(frame, plan)
+    assert out.shape == frame.shape
+    assert np.array_equal(out[: 240 // 2 - 10], frame[: 240 // 2 - 10])  # top half kept
+    lines = video._wrapped(plan, 10, 320 - 20, (240 // 2) // 13)
+    assert len(lines) == (240 // 2) // 13 and lines[-1].endswith(" ...")
+    word = video._wrapped("x" * 500, 10, 100, 50)  # a word wider than a line is cut
+    assert len(word) > 1 and all(len(line) < 500 for line in word)
 
 
 def test_eval_writes_rollouts_that_replay_and_render_by_task(tmp_path, capsys):
