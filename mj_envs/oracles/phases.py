@@ -5,6 +5,11 @@ is done; the demonstrator runs its phases in order and asks the domain's ``plan`
 next batch when the queue is empty. Every phase is bounded, so a demonstrator that
 cannot make progress says so (:class:`DemonstrationFailed`) instead of idling out the
 task's horizon.
+
+A phase is usually a closure over the objects it works on, built from the primitives in
+:mod:`mj_envs.oracles.motions`, e.g. ``lambda s: None if done(s) else grasp_action(...)``.
+Its actions are the environment's (by default ``(dx, dy, dz, grip)``: metres per control
+step and a finger command in [-1, 1]).
 """
 
 from __future__ import annotations
@@ -17,15 +22,30 @@ import numpy as np
 from bpns.errors import BpnsError
 from bpns.structs import State
 
+# A phase: State -> the next action, or None once it is done. A finished phase is dropped
+# and the next one is asked in the same state, so finishing costs no control step.
 Phase = Callable[[State], "np.ndarray | None"]
 
 
 class DemonstrationFailed(BpnsError, RuntimeError):
-    """The scripted demonstrator could not carry on (reported, never silent)."""
+    """The scripted demonstrator could not carry on (reported, never silent).
+
+    Raised by :meth:`PhasedDemonstrator.__call__` when one phase returns more than
+    ``max_phase_steps`` actions, and by domain phases that see the task cannot be done any
+    more (an object dropped or spilled). The demonstration run records the message as the
+    attempt's failure (``bpns.data.demo_attempts``); it is a :class:`RuntimeError` and a
+    ``BpnsError`` (its ``str()`` is the message as written).
+    """
 
 
 class PhasedDemonstrator(abc.ABC):
-    """A stateful closed-loop oracle policy for one task (call it once per step)."""
+    """A stateful closed-loop oracle policy for one task (call it once per step).
+
+    Subclasses implement :meth:`plan` and :meth:`idle_action`, and may set
+    ``max_phase_steps`` (default 150 actions, 7.5 s at the default 0.05 s control step)
+    to bound how long any one phase may run. Its state is the queue and the current
+    phase's step count: make a new demonstrator for each task (there is no reset).
+    """
 
     max_phase_steps: int = 150
 
@@ -35,13 +55,31 @@ class PhasedDemonstrator(abc.ABC):
 
     @abc.abstractmethod
     def plan(self, state: State) -> list[Phase]:
-        """The next phases from ``state``; an empty list when the task is done."""
+        """The next phases from ``state``; an empty list when the task is done.
+
+        Called whenever the queue is empty, in the state the next action is for, so a
+        plan can look at what the previous phases achieved. It should not return only
+        phases that are already done in ``state`` (each returning None at once): the call
+        would then ask again in the same state, and never return.
+        """
 
     @abc.abstractmethod
     def idle_action(self, state: State) -> np.ndarray:
-        """What to do once nothing is left to do (hold still)."""
+        """What to do once nothing is left to do (hold still).
+
+        Returned whenever :meth:`plan` returns an empty list; it does not count against
+        ``max_phase_steps``.
+        """
 
     def __call__(self, state: State) -> np.ndarray:
+        """The action for ``state``: the first unfinished phase's, planning when needed.
+
+        Phases that return None are dropped in order (in this same state) until one
+        returns an action; an empty queue is refilled by :meth:`plan`, and an empty plan
+        gives :meth:`idle_action`. Raises :class:`DemonstrationFailed` on the
+        ``max_phase_steps + 1``-th action of one phase (the counter restarts with each
+        phase), and lets any exception of a phase or of :meth:`plan` through.
+        """
         while True:
             if not self._phases:
                 self._phases = self.plan(state)
