@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from bpns.cli.common import (
+    UserError,
     default_workers,
     env_by_name,
     nonnegative,
@@ -34,6 +35,15 @@ def configure(p: argparse.ArgumentParser) -> None:
         "for imitation (default: the environment's; 0: plain demonstrations, as in the paper)",
     )
     p.add_argument(
+        "--perturb",
+        nargs="+",
+        metavar="PRESET|NAME=VALUE",
+        default=[],
+        help="demonstrate each task in its own perturbed world, drawn per task as "
+        "`bpns eval --perturb` draws them (a preset: moderate, hard; or NAME=VALUE items); "
+        "stored per demonstration, so replay stays exact (default: nominal physics)",
+    )
+    p.add_argument(
         "--debug",
         action="store_true",
         help="for each failed demonstration also print its traceback and last abstract states",
@@ -41,9 +51,17 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from bpns.env.environment import perturbed
+    from bpns.env.perturbations import PerturbationError
+    from bpns.env.worlds import parse_world
     from bpns.workflow import collect_demos
 
     env = env_by_name(args.env)
+    try:
+        worlds = parse_world(args.perturb)
+        perturbed(env, worlds.draw(0))  # an environment without perturbations says so now
+    except PerturbationError as err:
+        raise UserError(f"--perturb: {err}") from None
     check_output_file(args.out, "--out", args.overwrite)
     workers = capped_to_cores(args.workers, "--workers")
     with writing(args.out, "--out"):  # also: more demos than the disk holds, refused first
@@ -56,6 +74,7 @@ def run(args: argparse.Namespace) -> int:
             progress,
             debug=args.debug,
             noise=args.noise,
+            worlds=worlds,
         )
     print_lines(written)
     return 0 if written.num_written else 1

@@ -32,7 +32,8 @@ import numpy as np
 
 from bpns.atomic import atomic_path
 from bpns.data import dataset_checks as checks
-from bpns.env.environment import Environment
+from bpns.env.environment import Environment, perturbed
+from bpns.env.perturbations import Perturbation, PerturbationError
 from bpns.errors import BpnsError
 from bpns.structs import Demonstration, GroundAtom, Object, SimState, State, Task
 
@@ -247,6 +248,7 @@ def _read_demo(g: h5py.Group, env: Environment, features_only: bool) -> Demonstr
         raise ValueError("states, features and actions have inconsistent lengths")
     sims: list[SimState | None] = [None] * rows
     if not features_only:
+        env = _own_physics(g, env)
         try:
             world = env.load_world(checks.text_attr(g, "world"))
         except ValueError as err:  # does not compile, or its physics cannot be simulated
@@ -273,3 +275,16 @@ def _read_demo(g: h5py.Group, env: Environment, features_only: bool) -> Demonstr
         goal.add(GroundAtom(preds[pname], tuple(objects[o] for o in args)))  # TypeError: arity
     task = Task(init=states[0], goal=frozenset(goal), horizon=horizon)
     return Demonstration(task=task, states=states, actions=actions, expert_actions=expert)
+
+
+def _own_physics(g: h5py.Group, env: Environment) -> Environment:
+    """``env`` under the physics the demo was recorded in (its ``physics`` attribute:
+    ``bpns demos --perturb``, a rollout's world), so its simulator states load into a
+    scene of their own size (latency adds a queue to the state)."""
+    if "physics" not in g.attrs:
+        return env
+    try:
+        physics = Perturbation.from_json(checks.text_attr(g, "physics"))
+        return perturbed(env, physics)
+    except (PerturbationError, TypeError) as err:
+        raise ValueError(f"its 'physics' record is unusable: {err}") from None

@@ -5,6 +5,7 @@ first of a file: :func:`check_replay`)."""
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -12,11 +13,18 @@ from typing import TypeVar
 
 import numpy as np
 
-from bpns.data.datasets import count_demonstrations, iter_demonstrations
+from bpns.data.datasets import (
+    DatasetError,
+    count_demonstrations,
+    iter_demonstrations,
+    read_attributes,
+)
 from bpns.data.demo_attempts import DemoAttempt, attempt_demonstration
 from bpns.env.abstraction import abstract
-from bpns.env.environment import Environment
+from bpns.env.environment import Environment, perturbed
+from bpns.env.perturbations import NOMINAL, Perturbation, PerturbationError
 from bpns.env.registry import make_environment
+from bpns.env.worlds import NOMINAL_WORLD, WorldDistribution
 from bpns.pools import bounded_map, capped_workers, make_pool
 from bpns.structs import Demonstration, Task
 
@@ -42,12 +50,17 @@ class DemoJob:
     index: int
     train: bool = True
     noise: float = 0.0
+    worlds: str = ""  # JSON of the WorldDistribution the task's physics is drawn from
 
 
 def _attempt_one(job: DemoJob) -> tuple[int, DemoAttempt]:
     env = _ENV_CACHE.get(job.env_name) or _ENV_CACHE.setdefault(
         job.env_name, make_environment(job.env_name)
     )
+    if job.worlds:
+        physics = WorldDistribution.from_json(job.worlds).draw(job.index)
+        if not physics.nominal:
+            env = perturbed(env, physics)
     task = env.task(job.index, job.seed, job.train)
     return job.index, attempt_demonstration(env, task, [job.seed, job.index], noise=job.noise)
 
@@ -56,16 +69,26 @@ _ENV_CACHE: dict[str, Environment] = {}
 
 
 def collect_attempts(
-    env_name: str, n: int, seed: int, workers: int = 1, train: bool = True, noise: float = 0.0
+    env_name: str,
+    n: int,
+    seed: int,
+    workers: int = 1,
+    train: bool = True,
+    noise: float = 0.0,
+    worlds: WorldDistribution = NOMINAL_WORLD,
 ) -> Iterator[tuple[int, DemoAttempt]]:
     """Yield (task index, attempt) for tasks 0..n-1 of the seeded stream, in order; a
     failed attempt says why (exception, or the goal atoms missing at the horizon).
+    Task ``i`` is demonstrated in the world ``worlds.draw(i)`` (:func:`demo_physics`):
+    demonstrations under randomised physics show the skills the states a world that
+    differs from the model leads to.
 
     Jobs are made lazily and at most a few per worker are in flight, so memory does not
     grow with ``n``; ``workers`` is capped at the CPU count (:mod:`bpns.pools`)."""
     if n < 0:
         raise ValueError(f"number of demonstrations must be >= 0, got {n}")
-    jobs = (DemoJob(env_name, seed, i, train, noise) for i in range(n))
+    spec = "" if worlds.nominal else worlds.to_json()
+    jobs = (DemoJob(env_name, seed, i, train, noise, spec) for i in range(n))
     workers = capped_workers(workers)
     if workers <= 1:
         yield from map(_attempt_one, jobs)
@@ -149,9 +172,38 @@ class ReplayCheck:
 def check_replay(
     env: Environment, path: Path, limit: int | None = None, progress: Progress = no_progress
 ) -> ReplayCheck:
-    """Re-simulate the first ``limit`` (default: all) demonstrations of ``path``.
+    """Re-simulate the first ``limit`` (default: all) demonstrations of ``path``, each in
+    the physics it was collected in (``env`` is the nominal environment).
     Raises ``bpns.data.datasets.DatasetError`` for a file that is not a readable dataset."""
     total = count_demonstrations(path)
     n = min(total, limit or total)
-    demos = progress(iter_demonstrations(path, env, range(n)), n, "replay", "task")
-    return ReplayCheck(tuple(replay(env, d, i) for i, d in enumerate(demos)))
+    physics = demo_physics(path)[:n]
+    if all(p.nominal for p in physics):
+        demos = progress(iter_demonstrations(path, env, range(n)), n, "replay", "task")
+        return ReplayCheck(tuple(replay(env, d, i) for i, d in enumerate(demos)))
+    reports = []
+    for i in progress(range(n), n, "replay", "task"):
+        own = env if physics[i].nominal else perturbed(env, physics[i])
+        (demo,) = iter_demonstrations(path, own, [i])
+        reports.append(replay(own, demo, i))
+    return ReplayCheck(tuple(reports))
+
+
+def demo_physics(path: str | os.PathLike) -> list[Perturbation]:
+    """Each demonstration's physics, in file order: its ``physics`` attribute (written by
+    ``bpns demos --perturb``), else nominal. A record that does not parse raises
+    :class:`bpns.data.datasets.DatasetError` naming the demonstration."""
+    _, per_demo = read_attributes(path)
+    out = []
+    for i, attrs in enumerate(per_demo):
+        text = attrs.get("physics")
+        if text is None:
+            out.append(NOMINAL)
+            continue
+        try:
+            out.append(Perturbation.from_json(str(text)))
+        except (PerturbationError, ValueError, TypeError) as err:
+            raise DatasetError(
+                f"{path}: demo_{i} has an unusable 'physics' record: {err}"
+            ) from None
+    return out

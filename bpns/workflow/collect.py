@@ -9,10 +9,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bpns.atomic import require_free_space
-from bpns.data.datasets import min_demo_bytes, save_demonstrations
+from bpns.data.datasets import min_demo_bytes, write_demonstrations
 from bpns.data.demo_attempts import demo_noise_of
 from bpns.data.demos import Progress, collect_attempts, no_progress
 from bpns.env.environment import Environment
+from bpns.env.worlds import NOMINAL_WORLD, WorldDistribution
 
 
 # -- demonstrations -----------------------------------------------------------------------
@@ -25,12 +26,14 @@ class DemosWritten:
     seconds: float
     why: tuple[str, ...] = ()  # for each failed task: why (DemoAttempt.explain)
     noise: float = 0.0  # DART noise scale the demonstrations were collected with
+    worlds: str = "nominal"  # the label of the worlds they were collected in
 
     def lines(self) -> list[str]:
         noisy = f" (DART noise {self.noise:g})" if self.noise else ""
+        where = f" in {self.worlds} worlds" if self.worlds != "nominal" else ""
         out = [
-            f"wrote {self.num_written} demonstrations of {self.env_name}{noisy} to {self.path} "
-            f"in {self.seconds:.1f} s"
+            f"wrote {self.num_written} demonstrations of {self.env_name}{noisy}{where} to "
+            f"{self.path} in {self.seconds:.1f} s"
             + (f"; the demonstrator failed on tasks {list(self.failed)}" if self.failed else "")
         ]
         for index, why in zip(self.failed, self.why, strict=False):
@@ -47,12 +50,15 @@ def collect_demos(
     progress: Progress = no_progress,
     debug: bool = False,
     noise: float | None = None,
+    worlds: WorldDistribution = NOMINAL_WORLD,
 ) -> DemosWritten:
     """Run the scripted demonstrator on train tasks 0..num-1 and save the successes; say
     why each failure failed (with ``debug``: its traceback and last abstract states).
     ``noise``: DART noise scale (:class:`bpns.data.demo_attempts.ActionNoise`); None: the
-    environment's declared one. Raises :class:`bpns.atomic.NotEnoughSpaceError`, before
-    collecting any, when ``num`` demonstrations cannot fit on ``out``'s disk."""
+    environment's declared one. ``worlds``: task ``i`` is demonstrated in the physics
+    ``worlds.draw(i)``, stored with it (``physics``) so that replay is exact. Raises
+    :class:`bpns.atomic.NotEnoughSpaceError`, before collecting any, when ``num``
+    demonstrations cannot fit on ``out``'s disk."""
     # a lower bound per demonstration: more than the disk holds is certain not to fit
     needed = num * min_demo_bytes(env, env.task(0, seed, True))
     require_free_space(out, needed, f"{num} demonstrations")
@@ -64,7 +70,7 @@ def collect_demos(
 
     def successful():
         for index, attempt in progress(
-            collect_attempts(env.name, num, seed, workers, noise=noise),
+            collect_attempts(env.name, num, seed, workers, noise=noise, worlds=worlds),
             num,
             f"demos {env.name}",
             "task",
@@ -72,10 +78,20 @@ def collect_demos(
             if attempt.demo is None:
                 failed.append(index)
                 why.append(attempt.explain(debug))
+            elif worlds.nominal:
+                yield attempt.demo, {}
             else:
-                yield attempt.demo
+                yield attempt.demo, {"physics": worlds.draw(index).to_json()}
 
-    n = save_demonstrations(out, env, successful())
+    root = {} if worlds.nominal else {"worlds": worlds.to_json()}
+    n = write_demonstrations(out, env, successful(), root)
     return DemosWritten(
-        out, env.name, n, tuple(failed), time.perf_counter() - t0, tuple(why), noise
+        out,
+        env.name,
+        n,
+        tuple(failed),
+        time.perf_counter() - t0,
+        tuple(why),
+        noise,
+        worlds.label(),
     )
