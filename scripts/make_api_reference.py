@@ -32,6 +32,7 @@ MODULES = (
     "mj_envs.parts.objects",
     "mj_envs.parts.button",
     "mj_envs.parts.containers",
+    "mj_envs.parts.articulated",
     "mj_envs.scene",
 )
 COMMAND = "python scripts/make_api_reference.py"

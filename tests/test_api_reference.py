@@ -44,7 +44,13 @@ def _public_functions(module_name: str) -> list[tuple[str, object]]:
 
 
 @pytest.mark.parametrize(
-    "module_name", ["mj_envs.oracles.motions", "mj_envs.oracles.phases", "mj_envs.parts.containers"]
+    "module_name",
+    [
+        "mj_envs.oracles.motions",
+        "mj_envs.oracles.phases",
+        "mj_envs.parts.containers",
+        "mj_envs.parts.articulated",
+    ],
 )
 def test_every_public_function_has_a_docstring(module_name):
     functions = _public_functions(module_name)
