@@ -31,7 +31,7 @@ from bpns.learning.samplers import (
     sampler_training_data,
 )
 from bpns.learning.segmentation import segment_demonstration
-from bpns.learning.sharing import shared_data
+from bpns.learning.sharing import SharedData, shared_data
 from bpns.nets.mlp import train_classifier, train_gaussian
 from bpns.pools import make_pool, result_of
 from bpns.structs import Demonstration, Predicate, Segment, Skill, STRIPSOperator, Type
@@ -209,107 +209,25 @@ def learn_from_segments(
         for k, dataset in enumerate(datasets):
             produced_by = match_given(dataset.operator, given)
             if produced_by is not None:  # a given skill: its policy and sampler, nothing trained
-                g, binding = produced_by
-                say(f"{dataset.operator.name}: given skill {g.name}")
-                skills.append(
-                    Skill(
-                        dataset.operator,
-                        BoundPolicy(g, binding),
-                        BoundSampler(g, binding),
-                        _horizon(dataset, config),
-                    )
-                )
+                say(f"{dataset.operator.name}: given skill {produced_by[0].name}")
+                skills.append(_given_skill(dataset, produced_by, config))
                 skill_stats.append(SkillStats(dataset.operator.name, len(dataset), 0, 0))
                 continue
             shared = shared_data(datasets, k) if config.share_effect_data else None
-            own = len(dataset)
-            lent = "" if shared is None else f" + {len(shared.segments) - own} lent"
+            lent = "" if shared is None else f" + {len(shared.segments) - len(dataset)} lent"
             say(
-                f"preparing {dataset.operator.name} ({k + 1}/{len(datasets)}, {own} segments{lent})"
+                f"preparing {dataset.operator.name} ({k + 1}/{len(datasets)}, "
+                f"{len(dataset)} segments{lent})"
             )
             with timer.stage("policies"):
-                if shared is None:
-                    scopes = scope_trajectories(dataset)
-                    dims = ScopeDims.from_scopes(
-                        scopes, config.change_tolerance, dataset.scope_size
-                    )
-                    actions = [seg.actions for seg in dataset.segments]
-                else:
-                    scopes = [
-                        np.stack([s.vec(objs) for s in seg.states])
-                        for seg, objs in zip(shared.segments, shared.objects, strict=True)
-                    ]
-                    dims = ScopeDims.from_scopes(
-                        scopes, config.change_tolerance, objects=shared.scope
-                    )
-                    actions = [seg.actions for seg in shared.segments]
-            policy = trainer.submit(
-                NetworkJob(
-                    "policies",
-                    train_policy,
-                    (
-                        tuple(scopes),
-                        tuple(actions),
-                        dims,
-                        config.policy,
-                        derive_seed(config.seed, k, _POLICY),
-                        config.use_subgoals,
-                        config.near_goal_scale,
-                        config.linear_policy_base,
-                    ),
-                    threads,
-                )
-            )
-            fit = None
-            generator = classifier = None
+                scopes, dims, actions = _policy_data(dataset, shared, config)
+            policy = trainer.submit(_policy_job(scopes, actions, dims, config, k, threads))
+            fit = generator = classifier = None
             negatives = 0
             if config.use_subgoals:
                 with timer.stage("samplers"):
-                    lenders = () if shared is None else shared.segments
-                    sampler_seed = derive_seed(config.seed, k, _SAMPLER)
-                    gen_x, gen_y, cls_data = sampler_training_data(
-                        dataset,
-                        scopes,
-                        dims,
-                        _other_segments(groups, dataset, exclude=lenders),
-                        config.max_negative_bindings_per_segment,
-                        sampler_seed,
-                    )
-                    negatives = int((cls_data[:, -1] == 0).sum())
-                    fit = SamplerFit.of(
-                        gen_x,
-                        gen_y,
-                        cls_data,
-                        dims,
-                        config.generator,
-                        config.max_rejection_tries,
-                        config.linear_sampler_base,
-                        config.novelty_floor if config.refuse_novel_starts else None,
-                    )
-                # the seeds train_sampler gives them: the generator's, then + 1
-                if fit is not None:
-                    generator = trainer.submit(
-                        NetworkJob(
-                            "samplers",
-                            train_gaussian,
-                            (fit.gen_x, fit.gen_target, config.generator, sampler_seed),
-                            threads,
-                        )
-                    )
-                if fit is not None and fit.classifier_labels is not None:
-                    classifier = trainer.submit(
-                        NetworkJob(
-                            "samplers",
-                            train_classifier,
-                            (
-                                fit.classifier_x,
-                                fit.classifier_labels,
-                                config.classifier,
-                                sampler_seed + 1,
-                            ),
-                            threads,
-                        )
-                    )
+                    fit, negatives = _sampler_fit(dataset, shared, scopes, dims, groups, config, k)
+                generator, classifier = _submit_sampler(trainer, fit, config, k, threads)
             pending.append(_PendingSkill(len(skills), dataset, policy, fit, generator, classifier))
             skills.append(None)  # trained below
             skill_stats.append(
@@ -318,13 +236,7 @@ def learn_from_segments(
         say(f"training the networks of {len(pending)} skills")
         trained = trainer.results()
     for p in pending:
-        sampler: LearnedSampler | CurrentStateSampler = CurrentStateSampler()
-        if p.fit is not None and p.generator is not None:
-            cls_params = None if p.classifier is None else trained[p.classifier].network
-            sampler = p.fit.assemble(trained[p.generator].network, cls_params)
-        skills[p.slot] = Skill(
-            p.dataset.operator, trained[p.policy].network, sampler, _horizon(p.dataset, config)
-        )
+        skills[p.slot] = _assemble(p, trained, config)
     # each stage gets its share of the training's wall time
     busy = sum(t.seconds for t in trained) or 1.0
     for t in trained:
@@ -347,6 +259,139 @@ def learn_from_segments(
         config,
         stats,
         tuple(tuple(segs) for segs in per_demo),
+    )
+
+
+def _given_skill(
+    dataset: SkillDataset,
+    produced_by: tuple[GivenSkill, tuple[int, ...]],
+    config: LearningConfig,
+) -> Skill:
+    """A learned operator that a given skill produces keeps that skill's policy and
+    sampler (bound to the operator's parameters): nothing to train."""
+    g, binding = produced_by
+    return Skill(
+        dataset.operator,
+        BoundPolicy(g, binding),
+        BoundSampler(g, binding),
+        _horizon(dataset, config),
+    )
+
+
+def _policy_data(
+    dataset: SkillDataset, shared: SharedData | None, config: LearningConfig
+) -> tuple[list[np.ndarray], ScopeDims, list[np.ndarray]]:
+    """(scope trajectories, scope dims, actions) a skill's policy learns from: its own
+    segments, or with ``shared`` (:func:`shared_data`) also those lent by operators with
+    the same effects."""
+    if shared is None:
+        scopes = scope_trajectories(dataset)
+        dims = ScopeDims.from_scopes(scopes, config.change_tolerance, dataset.scope_size)
+        return scopes, dims, [seg.actions for seg in dataset.segments]
+    scopes = [
+        np.stack([s.vec(objs) for s in seg.states])
+        for seg, objs in zip(shared.segments, shared.objects, strict=True)
+    ]
+    dims = ScopeDims.from_scopes(scopes, config.change_tolerance, objects=shared.scope)
+    return scopes, dims, [seg.actions for seg in shared.segments]
+
+
+def _policy_job(
+    scopes: Sequence[np.ndarray],
+    actions: Sequence[np.ndarray],
+    dims: ScopeDims,
+    config: LearningConfig,
+    k: int,
+    threads: int,
+) -> NetworkJob:
+    return NetworkJob(
+        "policies",
+        train_policy,
+        (
+            tuple(scopes),
+            tuple(actions),
+            dims,
+            config.policy,
+            derive_seed(config.seed, k, _POLICY),
+            config.use_subgoals,
+            config.near_goal_scale,
+            config.linear_policy_base,
+        ),
+        threads,
+    )
+
+
+def _sampler_fit(
+    dataset: SkillDataset,
+    shared: SharedData | None,
+    scopes: Sequence[np.ndarray],
+    dims: ScopeDims,
+    groups: Sequence[SegmentGroup],
+    config: LearningConfig,
+    k: int,
+) -> tuple[SamplerFit | None, int]:
+    """The sampler's training data of skill ``k`` (None: nothing to fit) and how many
+    negative examples its classifier gets."""
+    lenders = () if shared is None else shared.segments
+    gen_x, gen_y, cls_data = sampler_training_data(
+        dataset,
+        scopes,
+        dims,
+        _other_segments(groups, dataset, exclude=lenders),
+        config.max_negative_bindings_per_segment,
+        derive_seed(config.seed, k, _SAMPLER),
+    )
+    negatives = int((cls_data[:, -1] == 0).sum())
+    fit = SamplerFit.of(
+        gen_x,
+        gen_y,
+        cls_data,
+        dims,
+        config.generator,
+        config.max_rejection_tries,
+        config.linear_sampler_base,
+        config.novelty_floor if config.refuse_novel_starts else None,
+    )
+    return fit, negatives
+
+
+def _submit_sampler(
+    trainer: _Trainer, fit: SamplerFit | None, config: LearningConfig, k: int, threads: int
+) -> tuple[int | None, int | None]:
+    """Submit the generator and (where it has labels) the classifier of skill ``k``;
+    their job indices. Seeds as ``train_sampler`` gives them: the generator's, then + 1."""
+    if fit is None:
+        return None, None
+    seed = derive_seed(config.seed, k, _SAMPLER)
+    generator = trainer.submit(
+        NetworkJob(
+            "samplers",
+            train_gaussian,
+            (fit.gen_x, fit.gen_target, config.generator, seed),
+            threads,
+        )
+    )
+    if fit.classifier_labels is None:
+        return generator, None
+    classifier = trainer.submit(
+        NetworkJob(
+            "samplers",
+            train_classifier,
+            (fit.classifier_x, fit.classifier_labels, config.classifier, seed + 1),
+            threads,
+        )
+    )
+    return generator, classifier
+
+
+def _assemble(p: _PendingSkill, trained: Sequence[TrainedNetwork], config: LearningConfig) -> Skill:
+    """The skill whose networks ``p`` waited for, from the trained networks."""
+    sampler: LearnedSampler | CurrentStateSampler = CurrentStateSampler()
+    if p.fit is not None and p.generator is not None:
+        cls_params = None if p.classifier is None else trained[p.classifier].network
+        sampler = p.fit.assemble(trained[p.generator].network, cls_params)
+    return Skill(
+        p.dataset.operator, trained[p.policy].network, sampler, _horizon(p.dataset, config)
     )
 
 
