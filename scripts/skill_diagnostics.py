@@ -16,6 +16,10 @@ refinement uses) in three ways:
 - ``steps``: simulated steps per successful rollout against the demonstrated segment's
   length (a skill that dawdles costs planning time even when it succeeds).
 
+``--show-stuck N`` prints, for the first N sampled rollouts that end ``stuck``, the last
+step's subgoal offset (subgoal - current, on the subgoal dims) and the policy's output
+(with a linear base: the network's and the base's parts): why a cloned policy stopped.
+
 ``--perturb`` rolls every skill out in a world of fixed perturbed physics instead (the
 ``bpns eval --perturb`` names, one value each; the start state is carried into it as the
 closed loop does), with each skill's horizon times ``--horizon-scale`` (the world's
@@ -28,6 +32,7 @@ goes to stdout. The environment is the one the skills directory records.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 
@@ -70,6 +75,7 @@ def main() -> None:
         "--perturb", nargs="+", default=[], metavar="NAME=VALUE", help="world physics"
     )
     parser.add_argument("--horizon-scale", type=float, default=1.0)
+    parser.add_argument("--show-stuck", type=int, default=0, metavar="N")
     args = parser.parse_args()
 
     env, learned = load_learned(args.skills)
@@ -84,6 +90,7 @@ def main() -> None:
     rng = np.random.default_rng(args.seed)
     tallies: dict[str, SkillTally] = defaultdict(SkillTally)
     indices = range(args.first, args.first + args.count)
+    shown = 0
     for demo in iter_demonstrations(args.demos, env, indices):
         executor = SkillExecutor(world, demo.task, limits)
         for seg in segment_demonstration(demo, env.predicates, env.contact_predicates, settle):
@@ -110,7 +117,17 @@ def main() -> None:
             for _ in range(args.samples):
                 subgoal = np.asarray(skill.sampler(seg.states[0], binding, rng), dtype=np.float64)
                 tally.sampled += 1
-                out = executor.execute(skill, binding, subgoal, start, test)
+                logged = _LoggedPolicy(skill.policy) if shown < args.show_stuck else None
+                run = skill if logged is None else dataclasses.replace(skill, policy=logged)
+                out = executor.execute(run, binding, subgoal, start, test)
+                if logged is not None and str(out) == "stuck" and logged.last is not None:
+                    shown += 1
+                    rel, net, base = logged.last
+                    print(f"stuck {skill.name}{tuple(o.name for o in binding)}:")
+                    print(f"  subgoal - current: {np.round(rel, 3).tolist()}")
+                    print(f"  network output:    {np.round(net, 3).tolist()}")
+                    if base is not None:
+                        print(f"  + linear base:     {np.round(base, 3).tolist()}")
                 if isinstance(out, Executed):
                     tally.sampled_ok += 1
                     tally.steps_ok.append(len(out.actions))
@@ -141,6 +158,25 @@ def main() -> None:
             f"| {skill.name} | {t.segments} | {t.demo_ok}/{t.segments} | "
             f"{t.sampled_ok}/{t.sampled} | {steps} | {fails} |"
         )
+
+
+class _LoggedPolicy:
+    """A learned policy that keeps its last input offset and output parts."""
+
+    def __init__(self, policy) -> None:
+        self.policy, self.dims = policy, policy.dims
+        self.last: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None
+
+    def __call__(self, state, objects, subgoal):
+        p = self.policy
+        x = state.vec(p.dims.scope(objects))
+        rel = subgoal[p.dims.subgoal_dims] - x[p.dims.subgoal_dims]
+        out = p(state, objects, subgoal)
+        base = None
+        if p.base is not None and p.near_scale is None and p.use_subgoals:
+            base = p.base(np.concatenate((x[p.dims.state_dims], rel)))
+        self.last = (rel, out if base is None else out - base, base)
+        return out
 
 
 if __name__ == "__main__":
