@@ -11,6 +11,7 @@ import contextlib
 import shlex
 import signal
 import sys
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -151,6 +152,32 @@ def sweep_config(args: argparse.Namespace) -> SweepConfig:
     return config
 
 
+#: seconds a preset waits for one environment plugin to load before it skips it
+PLUGIN_LOAD_SECONDS = 30.0
+
+
+def _within(seconds: float, fn, *args):
+    """``fn(*args)`` run in a daemon thread; :class:`TimeoutError` if it has not returned
+    within ``seconds`` (the thread is left to finish or to die with the process: an
+    import cannot be interrupted). Its exception, if any, is raised here."""
+    box: dict[str, object] = {}
+
+    def call() -> None:
+        try:
+            box["value"] = fn(*args)
+        except BaseException as err:  # noqa: BLE001  re-raised in the caller
+            box["error"] = err
+
+    worker = threading.Thread(target=call, daemon=True, name="plugin-load")
+    worker.start()
+    worker.join(seconds)
+    if worker.is_alive():
+        raise TimeoutError(f"{fn.__name__}{args} did not return within {seconds:g} s")
+    if "error" in box:
+        raise box["error"]  # type: ignore[misc]
+    return box["value"]
+
+
 def loadable(config: SweepConfig, args: argparse.Namespace):
     """``config`` without the plugins (environments, approaches) that fail to load, and
     its environments built: a preset (which takes every installed plugin) skips each
@@ -166,9 +193,20 @@ def loadable(config: SweepConfig, args: argparse.Namespace):
     envs = {}
     for name in config.envs:
         try:
-            envs[name] = make_environment(name)
+            if args.env is not None:  # named: wait for it, however long it takes
+                envs[name] = make_environment(name)
+            else:
+                envs[name] = _within(PLUGIN_LOAD_SECONDS, make_environment, name)
         except (PluginError, EnvironmentDeclarationError) as err:
             skip(err, args.env is not None)
+        except TimeoutError:
+            print(
+                f"bpns: warning: environment plugin {name!r} did not load within "
+                f"{PLUGIN_LOAD_SECONDS:g} s; the sweep skips it (name it with --env to "
+                "wait for it)",
+                file=sys.stderr,
+                flush=True,
+            )
     approaches = []
     for name in config.approaches:
         try:

@@ -129,3 +129,46 @@ def test_presets_skip_a_broken_approach_plugin_with_one_warning(broken_plugins, 
     assert warning.startswith("bpns: warning: approach plugin 'broken-approach'")
     assert "eval/cover-bpns-n4-seed0" in proc.stdout
     assert "broken-approach" not in proc.stdout
+
+
+def test_a_preset_skips_an_environment_that_does_not_load_in_time(monkeypatch, tmp_path, capsys):
+    import time
+
+    from bpns.cli import experiment
+    from bpns.env import registry
+
+    real = registry.make_environment
+    for name in registry.environment_names():  # imported once: later loads are quick
+        real(name)
+
+    def slow(name):
+        if name == "coffee":  # e.g. a plugin whose import blocks on a network drive
+            time.sleep(5.0)
+        return real(name)
+
+    monkeypatch.setattr(registry, "make_environment", slow)
+    monkeypatch.setattr(experiment, "PLUGIN_LOAD_SECONDS", 1.5)
+    argv = ["experiment", "--preset", "smoke", "--dry-run", "--out", str(tmp_path / "s")]
+    code, err = run_cli(argv, capsys)
+    assert code == 0, err
+    (warning,) = [line for line in err.splitlines() if "coffee" in line]
+    assert warning == (
+        "bpns: warning: environment plugin 'coffee' did not load within 1.5 s; the sweep "
+        "skips it (name it with --env to wait for it)"
+    )
+
+
+def test_waiting_for_a_call_returns_its_value_or_raises_its_error_or_times_out():
+    from bpns.cli.experiment import _within
+
+    assert _within(5.0, abs, -3) == 3
+    with pytest.raises(ValueError, match="bad"):
+        _within(5.0, _raise, ValueError("bad"))
+    with pytest.raises(TimeoutError, match="did not return within 0.2 s"):
+        import time
+
+        _within(0.2, time.sleep, 2.0)
+
+
+def _raise(err: Exception) -> None:
+    raise err
