@@ -9,8 +9,9 @@ a divergence. A divergence is repaired from the world's current state: first the
 the same abstract plan, from the last step whose needed atoms hold (refinement only, no
 search), then a new bilevel plan; at most ``max_replans`` times, within the task's
 deadline. Where the world's features left the model's prediction by more than
-``rerefine_atol`` at a boundary, the rest of the plan is refined again from where things
-really are (new subgoals, same abstract plan).
+``rerefine_atol`` at a boundary, the rest of the plan is checked again from where things
+really are: kept as it is when its subgoals still reach the goal in the model from there
+(one rollout per step), else refined again (new subgoals, same abstract plan).
 
 A step whose world start state is bit-identical to the model's, under the very same
 physics, takes over the model's segment instead of simulating it again: ``f`` is
@@ -34,8 +35,10 @@ from bpns.env.abstraction import abstract
 from bpns.env.environment import Environment, adopt_state
 from bpns.execution.executor import (
     CompletionTest,
+    Executed,
     ExecutionTimeout,
     RolloutConfig,
+    SkillExecutor,
     completion_test,
 )
 from bpns.execution.failures import FailureReason
@@ -186,6 +189,43 @@ class ClosedLoopPlanner:
         tests = [_test(op, after) for op, after in zip(operators, atoms[1:], strict=True)]
         return planned_steps(skills, operators, tests, ref)
 
+    def _reuse_rest(
+        self,
+        world: WorldRun,
+        rest: Sequence[PlannedStep],
+        deadline: float,
+        stats: ClosedLoopStats,
+    ) -> list[PlannedStep] | None:
+        """The rest of the plan with its subgoals kept, simulated again in the model from
+        the world's state: one rollout per step, no sampling. The cheap repair of a world
+        that deviated a little (a Coffee task re-refined at every boundary spent its 60 s
+        on fresh samples); None when a step no longer reaches its expected atoms or the
+        goal is missed, and the rest is refined again from scratch."""
+        task = self._model_task(world)
+        executor = SkillExecutor(self.model, task, RolloutConfig.of(self.config), deadline)
+        state, used, out = task.init, 0, []
+        try:
+            for step in rest:
+                done = executor.execute(
+                    step.skill, step.op.objects, step.subgoal, state, step.test, used
+                )
+                if not isinstance(done, Executed):
+                    return None
+                segment = (state, *done.states)
+                out.append(
+                    PlannedStep(
+                        step.skill, step.op, step.subgoal, step.test, tuple(done.actions), segment
+                    )
+                )
+                state, used = done.states[-1], used + len(done.actions)
+        except ExecutionTimeout:  # as _refine_rest: the old steps go on
+            return None
+        finally:
+            stats.model_steps += executor.sim_steps
+        if not task.goal_holds(abstract(state, self.model.goal_predicates)):
+            return None
+        return out
+
     # -- the loop -------------------------------------------------------------------
     def run(self, world: WorldRun, rng: np.random.Generator, deadline: float) -> ClosedLoopResult:
         stats = ClosedLoopStats()
@@ -225,10 +265,16 @@ class ClosedLoopPlanner:
             if problem is None:
                 i += 1
                 if i < len(steps) and self._deviated(world.state, steps[i - 1].states[-1]):
-                    rest = self._refine_rest(world, [s.op for s in steps[i:]], rng, deadline, stats)
+                    rest = self._reuse_rest(world, steps[i:], deadline, stats)
+                    text = "kept the subgoals of the last {n} steps: they still reach the goal"
+                    if rest is None:
+                        rest = self._refine_rest(
+                            world, [s.op for s in steps[i:]], rng, deadline, stats
+                        )
+                        text = "refined the last {n} steps again"
                     if rest is not None:
                         stats.rerefinements += 1
-                        world.event("rerefined", f"refined the last {len(rest)} steps again")
+                        world.event("rerefined", text.format(n=len(rest)))
                         steps, i = steps[:i] + rest, i
                 continue
             stats.replans += 1

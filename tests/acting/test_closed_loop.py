@@ -49,6 +49,13 @@ class SoftArm(toy.ToyStickButton):
         return super().simulate(state, np.array([0.6 * action[0], action[1]]))
 
 
+class Overshoot(toy.ToyStickButton):
+    """The arm covers 130 % of the distance the model predicts per command."""
+
+    def simulate(self, state: State, action: np.ndarray) -> State:
+        return super().simulate(state, np.array([1.3 * action[0], action[1]]))
+
+
 def _far_button_task():
     return toy.make_task([7.0])
 
@@ -97,6 +104,20 @@ def test_a_skill_still_moving_in_a_softer_world_gets_more_than_its_own_horizon()
     assert patient.success and patient.replans == 0
     assert len(patient.rollout.steps) == 1 and 7 < len(patient.actions) <= 14
     assert plan_reaches_goal(SoftArm(), task, patient.actions)
+
+
+def test_a_world_that_deviates_a_little_keeps_the_plans_subgoals_after_checking_them():
+    # every skill ends past where the model put it: each boundary deviates, but the rest
+    # of the plan, simulated again in the model from there, still reaches the goal
+    model, world, task = toy.ToyStickButton(), Overshoot(), toy.make_task([3.0, 6.0])
+    planner = BilevelPlanning(model, toy.skills(), CONFIG)
+    solution = planner.solve_in_world(
+        task, model, world, np.random.default_rng(0), 20.0, ExecutionConfig()
+    )
+    assert solution.success and solution.replans == 0
+    texts = [e.text for e in solution.rollout.events]
+    assert texts and all(t.startswith("kept the subgoals of the last") for t in texts)
+    assert plan_reaches_goal(Overshoot(), task, solution.actions)
 
 
 def test_open_loop_replays_the_models_plan_and_misses_the_goal_in_the_world():
