@@ -177,7 +177,10 @@ class ClosedLoopPlanner:
             atoms.append(op.apply(atoms[-1]))
         skeleton = AbstractPlan(tuple(operators), tuple(atoms), float(len(operators)))
         skills = [self.by_operator[op.operator] for op in operators]
-        config = dataclasses.replace(self.config, timeout=max(0.0, deadline - time.monotonic()))
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:  # the task's time is up: its timeout, not a planning config error
+            raise ExecutionTimeout
+        config = dataclasses.replace(self.config, timeout=remaining)
         try:
             ref = refine(skeleton, skills, task, self.model, config, rng, deadline)
         except ExecutionTimeout:
@@ -200,7 +203,8 @@ class ClosedLoopPlanner:
         the world's state: one rollout per step, no sampling. The cheap repair of a world
         that deviated a little (a Coffee task re-refined at every boundary spent its 60 s
         on fresh samples); None when a step no longer reaches its expected atoms or the
-        goal is missed, and the rest is refined again from scratch."""
+        goal is missed, and the rest is refined again from scratch. The task's deadline
+        passing meanwhile is its timeout (:class:`ExecutionTimeout`, as in the world)."""
         task = self._model_task(world)
         executor = SkillExecutor(self.model, task, RolloutConfig.of(self.config), deadline)
         state, used, out = task.init, 0, []
@@ -218,8 +222,6 @@ class ClosedLoopPlanner:
                     )
                 )
                 state, used = done.states[-1], used + len(done.actions)
-        except ExecutionTimeout:  # as _refine_rest: the old steps go on
-            return None
         finally:
             stats.model_steps += executor.sim_steps
         if not task.goal_holds(abstract(state, self.model.goal_predicates)):

@@ -13,8 +13,10 @@ import pytest
 
 from bpns.acting.config import ExecutionConfig, ExecutionConfigError
 from bpns.acting.monitor import kept_atoms, necessary_atoms, repair_point
+from bpns.acting.replanning import ClosedLoopPlanner, ClosedLoopStats, world_run
 from bpns.approaches.bilevel import BilevelPlanning
 from bpns.evaluation.evaluate import plan_reaches_goal
+from bpns.execution.executor import ExecutionTimeout
 from bpns.execution.failures import FailureReason
 from bpns.planning.config import PlanningConfig
 from bpns.structs import GroundAtom, State
@@ -118,6 +120,18 @@ def test_a_world_that_deviates_a_little_keeps_the_plans_subgoals_after_checking_
     texts = [e.text for e in solution.rollout.events]
     assert texts and all(t.startswith("kept the subgoals of the last") for t in texts)
     assert plan_reaches_goal(Overshoot(), task, solution.actions)
+
+
+def test_a_rest_of_the_plan_checked_after_the_deadline_is_the_tasks_timeout():
+    # the deadline passed at a boundary: refining the rest is the task's timeout, not a
+    # planning config with a timeout of 0 (which the config refuses)
+    model, task = toy.ToyStickButton(), toy.make_task([3.0])
+    planner = ClosedLoopPlanner(toy.skills(), model, CONFIG, ExecutionConfig())
+    world = world_run(Overshoot(), task, CONFIG, deadline=0.0)
+    robot, button = (task.init.objects_of_type(t)[0] for t in (toy.ROBOT, toy.BUTTON))
+    ops = [toy.PRESS_DIRECT.ground((robot, button))]
+    with pytest.raises(ExecutionTimeout):
+        planner._refine_rest(world, ops, np.random.default_rng(0), 0.0, ClosedLoopStats())
 
 
 def test_open_loop_replays_the_models_plan_and_misses_the_goal_in_the_world():
