@@ -267,7 +267,7 @@ class NumpyGNN:
 def _build_torch(
     vocab: GraphVocabulary, config: GNNConfig, node_out: int, global_out: int
 ) -> torch.nn.ModuleDict:
-    import torch
+    import torch  # lazy: planning runs NumpyGNN, without torch
 
     lat, hid = config.latent, config.hidden
     two = 2 * lat
@@ -300,7 +300,7 @@ class _TorchBatch:
 def _torch_forward(
     net: torch.nn.ModuleDict, b: _TorchBatch, steps: int
 ) -> tuple[torch.Tensor | None, torch.Tensor]:
-    import torch
+    import torch  # lazy: planning runs NumpyGNN, without torch
 
     lat = net["enc_node"][-1].out_features
     n = b.nodes.shape[0]
@@ -377,7 +377,7 @@ def train_gnn(vocab: GraphVocabulary, data: GNNTrainingData, config: GNNConfig) 
     Seeded: same data and config give the same weights (for the configured thread
     count). torch's thread count is set to ``config.torch_threads`` for the duration.
     """
-    import torch
+    import torch  # lazy: planning runs NumpyGNN, without torch
 
     t0 = time.perf_counter()
     n_all = len(data.graphs)
@@ -506,7 +506,7 @@ def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
 
 def torch_module(params: GNNParams) -> torch.nn.ModuleDict:
     """A float64 torch module holding ``params`` (for :func:`torch_forward`)."""
-    import torch
+    import torch  # lazy: planning runs NumpyGNN, without torch
 
     return torch.nn.ModuleDict({name: torch_layers(layers) for name, layers in params.mlps.items()})
 
@@ -515,7 +515,7 @@ def torch_forward(
     net: torch.nn.ModuleDict, params: GNNParams, vocab: GraphVocabulary, batch: GraphBatch
 ) -> tuple[np.ndarray, np.ndarray]:
     """The forward pass of :class:`NumpyGNN` computed by torch (no autograd)."""
-    import torch
+    import torch  # lazy: planning runs NumpyGNN, without torch
 
     L = lambda a: torch.as_tensor(a, dtype=torch.long)  # noqa: E731
     with torch.no_grad():

@@ -9,7 +9,15 @@ import os
 import sys
 from pathlib import Path
 
+import h5py
+from tqdm import tqdm
+
+from bpns.approaches import UnknownApproachError, get_approach
+from bpns.data.datasets import not_a_demo_file
+from bpns.env.registry import PluginError, UnknownEnvironmentError, make_environment
 from bpns.errors import BpnsError
+from bpns.learning.artifacts.learned import load_learned
+from bpns.learning.artifacts.skills_dir import ArtifactError
 
 
 class UserError(BpnsError):
@@ -17,8 +25,6 @@ class UserError(BpnsError):
 
 
 def env_by_name(name: str):
-    from bpns.env.registry import PluginError, UnknownEnvironmentError, make_environment
-
     try:
         return make_environment(name)
     except (UnknownEnvironmentError, PluginError) as err:
@@ -84,8 +90,6 @@ def default_workers() -> int:
 
 
 def progress(iterable, total: int, desc: str, unit: str = "task"):
-    from tqdm import tqdm
-
     return tqdm(
         iterable,
         total=total,
@@ -99,9 +103,6 @@ def progress(iterable, total: int, desc: str, unit: str = "task"):
 def approach_by_name(name: str):
     """The registry entry of approach ``name``; a plugin that fails to load, or an
     unknown name, is a UserError naming it."""
-    from bpns.approaches import UnknownApproachError, get_approach
-    from bpns.env.registry import PluginError
-
     try:
         return get_approach(name)
     except (UnknownApproachError, PluginError) as err:
@@ -109,10 +110,6 @@ def approach_by_name(name: str):
 
 
 def file_env(path: Path, name: str | None):
-    import h5py
-
-    from bpns.data.datasets import not_a_demo_file
-
     if name is None:
         problem = not_a_demo_file(path)
         if problem is not None:
@@ -143,10 +140,6 @@ def stage_reporter():
 
 def learned_in(directory: Path, env_name: str | None = None):
     """(environment, LearnedSkills) of a skills directory, errors as UserError."""
-    from bpns.env.registry import PluginError, UnknownEnvironmentError
-    from bpns.learning.artifacts.learned import load_learned
-    from bpns.learning.artifacts.skills_dir import ArtifactError
-
     try:
         return load_learned(directory, env_name)
     except (ArtifactError, UnknownEnvironmentError, PluginError) as err:

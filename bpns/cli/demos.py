@@ -16,6 +16,10 @@ from bpns.cli.common import (
     progress,
 )
 from bpns.cli.paths import capped_to_cores, check_output_file, writing
+from bpns.env.environment import perturbed
+from bpns.env.perturbations import PerturbationError
+from bpns.env.worlds import parse_world
+from bpns.workflow import collect_demos
 
 HELP = "collect demonstrations with the scripted oracle"
 
@@ -51,11 +55,6 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpns.env.environment import perturbed
-    from bpns.env.perturbations import PerturbationError
-    from bpns.env.worlds import parse_world
-    from bpns.workflow import collect_demos
-
     env = env_by_name(args.env)
     try:
         worlds = parse_world(args.perturb)

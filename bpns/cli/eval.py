@@ -7,6 +7,7 @@ import dataclasses
 import sys
 
 from bpns.acting.config import MODES, ExecutionConfig
+from bpns.approaches import SkillSource, approach_names
 from bpns.cli.common import (
     UserError,
     approach_by_name,
@@ -30,11 +31,13 @@ from bpns.cli.paths import (
     check_output_file,
     writing,
 )
+from bpns.env.environment import perturbed
 from bpns.env.perturbations import PerturbationError
 from bpns.env.worlds import ModelSpec, WorldDistribution, parse_model, parse_world
-from bpns.evaluation.reporting import solved_line
+from bpns.evaluation.reporting import explain_lines, solved_line
 from bpns.inspect.extras import require
 from bpns.inspect.html_report import PAGE
+from bpns.planning.config import planning_config_for
 from bpns.workflow.evaluate import EvalRequest, evaluate_approaches
 from bpns.workflow.inspect import RERUN_TASKS, record_evaluation, recording_name
 from bpns.workflow.report import report_evaluation
@@ -44,8 +47,6 @@ HELP = "solve held-out tasks by bilevel planning; results JSON + markdown table"
 
 
 def configure(p: argparse.ArgumentParser) -> None:
-    from bpns.approaches import approach_names
-
     p.add_argument("--env", help="environment (default: the one recorded in --skills)")
     p.add_argument("--skills", type=path_arg, help="skills directory (for learned approaches)")
     p.add_argument(
@@ -245,10 +246,6 @@ def world_settings(
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpns.approaches import SkillSource
-    from bpns.env.environment import perturbed
-    from bpns.planning.config import planning_config_for
-
     worlds, model, execution = world_settings(args)
     if args.video is None and (args.task is not None or args.camera is not None):
         raise UserError("--task and --camera choose what --video renders: pass --video too")
@@ -330,8 +327,6 @@ def run(args: argparse.Namespace) -> int:
     if reported.no_video_of is not None:
         print(f"no {reported.no_video_of} task was solved: no video", file=sys.stderr)
     if args.explain:
-        from bpns.evaluation.reporting import explain_lines
-
         for report in reports:
             for line in explain_lines(report):
                 print(line)

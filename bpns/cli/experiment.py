@@ -16,10 +16,20 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from bpns.acting.config import MODES
+from bpns.approaches import get_approach
 from bpns.cli.common import UserError, path_arg, whole_at_least
 from bpns.cli.paths import check_free_space, check_output_dir
+from bpns.data.datasets import min_demo_bytes
+from bpns.env import registry
+from bpns.env.perturbations import PerturbationError, parse_axis
+from bpns.env.registry import EnvironmentDeclarationError, PluginError, environment_names
+from bpns.experiments.aggregate import markdown_table
 from bpns.experiments.approach_info import approach_names
+from bpns.experiments.backends import BackendError, PoolBackend, RayBackend, check_reachable
+from bpns.experiments.cells import DEMOS, skipped_approaches
 from bpns.experiments.presets import PRESETS, SweepConfig, SweepConfigError
+from bpns.experiments.store import CellStore, CellStoreError
+from bpns.experiments.sweep import load_finished, run_sweep, sweep_cells, write_sweep_file
 
 HELP = "sweep environments x demo counts x seeds x approaches; mean ± std table and figures"
 
@@ -117,9 +127,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def sweep_config(args: argparse.Namespace) -> SweepConfig:
-    from bpns.env.perturbations import PerturbationError, parse_axis
-    from bpns.env.registry import environment_names
-
     axis = None
     if args.perturb_axis:
         try:
@@ -182,8 +189,6 @@ def loadable(config: SweepConfig, args: argparse.Namespace):
     """``config`` without the plugins (environments, approaches) that fail to load, and
     its environments built: a preset (which takes every installed plugin) skips each
     broken one with one warning line; one named on the command line is an error."""
-    from bpns.approaches import get_approach
-    from bpns.env.registry import EnvironmentDeclarationError, PluginError, make_environment
 
     def skip(err: PluginError | EnvironmentDeclarationError, named: bool) -> None:
         if named:
@@ -194,9 +199,9 @@ def loadable(config: SweepConfig, args: argparse.Namespace):
     for name in config.envs:
         try:
             if args.env is not None:  # named: wait for it, however long it takes
-                envs[name] = make_environment(name)
+                envs[name] = registry.make_environment(name)
             else:
-                envs[name] = _within(PLUGIN_LOAD_SECONDS, make_environment, name)
+                envs[name] = _within(PLUGIN_LOAD_SECONDS, registry.make_environment, name)
         except (PluginError, EnvironmentDeclarationError) as err:
             skip(err, args.env is not None)
         except TimeoutError:
@@ -245,21 +250,7 @@ def command_line(config: SweepConfig, out: Path, args: argparse.Namespace) -> st
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpns.experiments.backends import (
-        BackendError,
-        PoolBackend,
-        RayBackend,
-        check_reachable,
-    )
-    from bpns.experiments.cells import skipped_approaches
-    from bpns.experiments.report import write_report
-    from bpns.experiments.store import CellStore, CellStoreError
-    from bpns.experiments.sweep import (
-        load_finished,
-        run_sweep,
-        sweep_cells,
-        write_sweep_file,
-    )
+    from bpns.experiments.report import write_report  # heavy: loads matplotlib (~1 s)
 
     if args.ray_address and args.backend != "ray":
         raise UserError("--ray-address needs --backend ray")
@@ -324,8 +315,6 @@ def run(args: argparse.Namespace) -> int:
         code = 0 if summary.complete else 1
     rows, written = write_report(out, cells, store, config, command)
     if rows:
-        from bpns.experiments.aggregate import markdown_table
-
         print(markdown_table(rows), end="")
     print("wrote " + ", ".join(str(p) for p in written))
     return code
@@ -334,9 +323,6 @@ def run(args: argparse.Namespace) -> int:
 def _check_demos_fit(cells, finished, envs, out: Path) -> None:
     """Refuse a sweep whose demonstrations still to collect cannot fit on ``out``'s disk
     (a lower bound per demonstration; see ``bpns.data.datasets.min_demo_bytes``)."""
-    from bpns.data.datasets import min_demo_bytes
-    from bpns.experiments.cells import DEMOS
-
     todo = [c for c in cells if c.kind == DEMOS and c.key not in finished]
     needed = sum(
         (c.count or 0) * min_demo_bytes(envs[c.env], envs[c.env].task(0, c.seed, True))

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-from typing import TYPE_CHECKING
 
+from bpns.baselines.learn import BaselinesConfig
 from bpns.cli.common import (
     UserError,
     file_env,
@@ -19,9 +19,9 @@ from bpns.cli.common import (
     tolerance_or_off,
 )
 from bpns.cli.paths import capped_to_cores, check_skills_dir, usable_cores, writing
-
-if TYPE_CHECKING:
-    from bpns.baselines.learn import BaselinesConfig
+from bpns.data.datasets import DatasetError
+from bpns.learning.config import learning_config_for
+from bpns.workflow import CannotLearnError, learn_to_directory
 
 HELP = "learn neuro-symbolic skills from demonstrations"
 
@@ -127,10 +127,6 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpns.data.datasets import DatasetError
-    from bpns.learning.config import learning_config_for
-    from bpns.workflow import CannotLearnError, learn_to_directory
-
     check_skills_dir(args.out, "--out", args.overwrite, [args.demos])
     if args.min_segment_fraction > 1.0:
         raise UserError(f"--min-segment-fraction must be <= 1, got {args.min_segment_fraction}")
@@ -192,8 +188,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _baselines_config(args: argparse.Namespace) -> BaselinesConfig:
-    from bpns.baselines.learn import BaselinesConfig
-
     base = (
         BaselinesConfig()
         if args.baseline_steps is None

@@ -7,6 +7,9 @@ from pathlib import Path
 
 from bpns.cli.common import UserError, file_env, nonnegative, path_arg, positive
 from bpns.cli.paths import check_output_file
+from bpns.data.datasets import DatasetError, load_demonstrations
+from bpns.evaluation.rollout_files import RolloutsFile, is_rollouts_file
+from bpns.execution.video import VideoError, default_camera, render_rollout, render_video
 
 HELP = "render a demonstration or an eval rollout (rollouts_<approach>.h5) to mp4 (and PNG)"
 
@@ -35,10 +38,6 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpns.data.datasets import DatasetError, load_demonstrations
-    from bpns.evaluation.rollout_files import RolloutsFile, is_rollouts_file
-    from bpns.execution.video import VideoError, default_camera, render_rollout, render_video
-
     env = file_env(args.file, args.env)
     try:
         rollouts = RolloutsFile.read(args.file) if is_rollouts_file(args.file) else None

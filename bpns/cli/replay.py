@@ -5,6 +5,9 @@ from __future__ import annotations
 import argparse
 
 from bpns.cli.common import UserError, file_env, path_arg, positive, print_lines, progress
+from bpns.data.datasets import DatasetError
+from bpns.data.demos import check_replay
+from bpns.evaluation.rollout_files import is_rollouts_file, replay_rollouts
 
 HELP = "re-simulate demonstrations (or an eval's rollouts) and report any divergence"
 
@@ -16,10 +19,6 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpns.data.datasets import DatasetError
-    from bpns.data.demos import check_replay
-    from bpns.evaluation.rollout_files import is_rollouts_file, replay_rollouts
-
     env = file_env(args.file, args.env)
     try:
         if is_rollouts_file(args.file):  # under the physics they ran under

@@ -12,9 +12,9 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from bpns.approaches import ApproachEntry, SkillSource, approach_names
+from bpns.baselines.learn import BaselinesConfig
 from bpns.cli.common import (
     UserError,
     approach_by_name,
@@ -53,9 +53,6 @@ from bpns.workflow import (
 )
 from bpns.workflow.evaluate import EvalRequest, evaluate_approaches
 from bpns.workflow.report import report_evaluation
-
-if TYPE_CHECKING:
-    from bpns.baselines.learn import BaselinesConfig
 
 HELP = "the whole pipeline: demos -> learn -> eval -> table -> video"
 REPLAY_CHECKED = 5  # demonstrations re-simulated to check the simulator is exact
@@ -157,8 +154,6 @@ def parse_run(args: argparse.Namespace) -> RunConfig:
     learning = learning_config_for(env, seed=args.seed)
     baselines = None
     if stages:
-        from bpns.baselines.learn import BaselinesConfig  # loads the GNN code: only here
-
         steps = args.baseline_steps
         base = BaselinesConfig() if steps is None else BaselinesConfig.with_max_steps(steps)
         baselines = base.only(stages)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 
 from bpns.cli.common import learned_in, path_arg
+from bpns.learning import describe
+from bpns.learning.artifacts.pddl import domain_pddl
 
 HELP = "inspect learned skills (`bpns skills show DIR`)"
 
@@ -18,9 +20,6 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bpns.learning import describe
-    from bpns.learning.artifacts.pddl import domain_pddl
-
     env, learned = learned_in(args.directory, args.env)
     if args.pddl:
         print(domain_pddl(env.name, learned.types, learned.predicates, learned.operators), end="")

@@ -222,7 +222,7 @@ class RayBackend:
         connect_timeout: float = CONNECT_TIMEOUT,
     ) -> None:
         try:
-            import ray
+            import ray  # optional extra (bpns[ray]), only for this backend
         except ImportError:
             raise BackendError(
                 "the ray backend needs Ray: pip install 'bpns[ray]' (or 'ray>=2.9')"

@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from tqdm import tqdm
+
 from bpns.atomic import atomic_path, storage_problem
 from bpns.env.environment import Environment
 from bpns.env.registry import make_environment
@@ -234,8 +236,6 @@ def progress_enabled() -> bool:
 
 
 def _progress_bar(total: int, initial: int, show: bool | None):
-    from tqdm import tqdm
-
     return tqdm(
         total=total,
         initial=initial,

@@ -440,7 +440,7 @@ def train_network(job: NetworkJob) -> TrainedNetwork:
 
 
 def _torch_threads() -> int:
-    import torch
+    import torch  # heavy: only when training (see train_network)
 
     return torch.get_num_threads()
 

@@ -98,7 +98,7 @@ def check_layers(layers: Layers, fan_in: int, where: str) -> int:
 def torch_linears(sizes: Sequence[int]) -> torch.nn.ModuleList:
     """``torch.nn.Linear`` layers of ``sizes``, initialised from torch's global RNG in
     layer order (seed it, under ``torch.random.fork_rng``, for reproducible weights)."""
-    import torch
+    import torch  # lazy: planning and evaluation run the numpy nets without torch
 
     with warnings.catch_warnings():  # a layer of zero inputs (a GNN with no nullary atoms)
         warnings.filterwarnings("ignore", message="Initializing zero-element tensors")
@@ -109,7 +109,7 @@ def torch_linears(sizes: Sequence[int]) -> torch.nn.ModuleList:
 
 def torch_mlp(layers: torch.nn.ModuleList, x: torch.Tensor) -> torch.Tensor:
     """The forward pass of :func:`numpy_mlp` on torch layers (autograd as usual)."""
-    import torch
+    import torch  # lazy: planning and evaluation run the numpy nets without torch
 
     for layer in layers[:-1]:
         x = torch.relu(layer(x))
@@ -130,7 +130,7 @@ def numpy_layers(layers: torch.nn.ModuleList) -> Layers:
 def torch_layers(layers: Layers) -> torch.nn.ModuleList:
     """float64 torch layers holding ``layers`` (the independent check of numpy inference);
     torch's global RNG is left as it was."""
-    import torch
+    import torch  # lazy: planning and evaluation run the numpy nets without torch
 
     with torch.random.fork_rng(devices=[]):  # initial values are overwritten below
         sizes = (layers[0][0].shape[0], *(w.shape[1] for w, _ in layers))
@@ -161,7 +161,7 @@ class Adam:
         betas: tuple[float, float] = (0.9, 0.999),
         eps: float = 1e-8,
     ) -> None:
-        import torch
+        import torch  # lazy: planning and evaluation run the numpy nets without torch
 
         self.params, self.lr, self.betas, self.eps = list(params), lr, betas, eps
         self.m = [torch.zeros_like(p) for p in self.params]
@@ -170,7 +170,7 @@ class Adam:
 
     def step(self, grads: Sequence[torch.Tensor | None]) -> None:
         """One update; a parameter whose gradient is None is left as it is."""
-        import torch
+        import torch  # lazy: planning and evaluation run the numpy nets without torch
 
         b1, b2 = self.betas
         self.t += 1

@@ -164,6 +164,7 @@ def input_box(
 
 def torch_gaussian_head(raw: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Split raw outputs into mean and variance (ELU + 1 keeps the variance positive)."""
+    # lazy: planning and evaluation run the numpy nets without torch
     import torch.nn.functional as F
 
     d = raw.shape[-1] // 2
@@ -179,6 +180,7 @@ def torch_gaussian_head(raw: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
 
 class MSELoss:
     def value(self, raw: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        # lazy: planning and evaluation run the numpy nets without torch
         import torch.nn.functional as F
 
         return F.mse_loss(raw, target)
@@ -191,18 +193,17 @@ class GaussianNLLLoss:
     """Mean over elements of 0.5 * (log var + (target - mean)^2 / var)."""
 
     def value(self, raw: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        import torch
+        import torch  # lazy: planning and evaluation run the numpy nets without torch
 
         mean, var = torch_gaussian_head(raw)
         return 0.5 * (torch.log(var) + (target - mean) ** 2 / var).mean()
 
     def grad(self, raw: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        import torch
-        import torch.nn.functional as F
+        import torch  # lazy: planning and evaluation run the numpy nets without torch
 
         d = raw.shape[1] // 2
         mean, z = raw[:, :d], raw[:, d:]
-        var = F.elu(z) + (1.0 + MIN_VARIANCE)
+        var = torch.nn.functional.elu(z) + (1.0 + MIN_VARIANCE)
         diff = mean - target
         scale = 1.0 / diff.numel()
         d_mean = diff / var * scale
@@ -218,14 +219,13 @@ class WeightedBCELoss:
         self.pos_weight = pos_weight
 
     def value(self, raw: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        import torch
-        import torch.nn.functional as F
+        import torch  # lazy: planning and evaluation run the numpy nets without torch
 
         weight = torch.tensor([self.pos_weight], dtype=raw.dtype)
-        return F.binary_cross_entropy_with_logits(raw, target, pos_weight=weight)
+        return torch.nn.functional.binary_cross_entropy_with_logits(raw, target, pos_weight=weight)
 
     def grad(self, raw: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        import torch
+        import torch  # lazy: planning and evaluation run the numpy nets without torch
 
         wy = target * self.pos_weight
         return (torch.sigmoid(raw) * (wy + 1.0 - target) - wy).mul_(1.0 / raw.numel())
@@ -239,7 +239,7 @@ class _FlatMLP:
     backward pass; weights are (fan_in, fan_out) so a layer is ``addmm(b, h, W)``."""
 
     def __init__(self, sizes: tuple[int, ...], seed: int, dtype: torch.dtype | None = None):
-        import torch
+        import torch  # lazy: planning and evaluation run the numpy nets without torch
 
         # torch.nn.Linear's default initialisation, without touching the global RNG.
         with torch.random.fork_rng(devices=[]):
@@ -265,7 +265,7 @@ class _FlatMLP:
 
     def forward(self, x: torch.Tensor) -> list[torch.Tensor]:
         """Activations: the input, each hidden layer's ReLU output, the raw output."""
-        import torch
+        import torch  # lazy: planning and evaluation run the numpy nets without torch
 
         acts = [x]
         last = len(self.weights) - 1
@@ -276,7 +276,7 @@ class _FlatMLP:
 
     def backward(self, acts: list[torch.Tensor], d_out: torch.Tensor) -> None:
         """Fill ``self.grad`` from dLoss/d(raw output)."""
-        import torch
+        import torch  # lazy: planning and evaluation run the numpy nets without torch
 
         d = d_out
         for k in range(len(self.weights) - 1, -1, -1):
@@ -309,7 +309,7 @@ def _fit(
     global RNG state, and the permutations from a torch.Generator seeded alike: equal
     inputs give equal weights.
     """
-    import torch
+    import torch  # lazy: planning and evaluation run the numpy nets without torch
 
     if len(inputs) == 0:
         raise ValueError("cannot train a network on an empty dataset")
@@ -394,7 +394,7 @@ def train_classifier(
 def torch_reference(params: MLPParams, inputs: np.ndarray) -> np.ndarray:
     """Raw outputs (standardised output space, before any head) computed by torch in
     float64 from ``params``: the independent check of the numpy inference path."""
-    import torch
+    import torch  # lazy: planning and evaluation run the numpy nets without torch
 
     layers = torch_layers(params.layers)
     with torch.no_grad():

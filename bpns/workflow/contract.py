@@ -315,7 +315,7 @@ def check_gym(ctx: _Context) -> None:
     if not ctx.config.gym:
         ctx.report.notes.append("gym: skipped (disabled)")
         return
-    import gymnasium as gym
+    import gymnasium as gym  # lazy: ~0.1 s to import, and only this check needs it
     from gymnasium.utils.env_checker import check_env
 
     ids = [

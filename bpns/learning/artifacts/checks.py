@@ -13,7 +13,9 @@ turns it into ``ArtifactError``.
 
 from __future__ import annotations
 
+import dataclasses
 import errno
+import io
 import json
 import math
 import os
@@ -219,8 +221,6 @@ def check_index_schema(index: Mapping[str, Any]) -> None:
 def check_json_fields(values: Mapping[str, Any], cls: type, where: str) -> None:
     """Each value whose key is a field of dataclass ``cls`` has a JSON type its
     annotation admits (int, float, bool, tuple of int, optional ones, or an object)."""
-    import dataclasses
-
     for f in dataclasses.fields(cls):
         if f.name not in values:
             continue
@@ -249,8 +249,6 @@ def check_json_fields(values: Mapping[str, Any], cls: type, where: str) -> None:
 def read_npz(path: Path, allowed: re.Pattern[str]) -> dict[str, np.ndarray]:
     """The arrays of a regular ``.npz`` file inside the size limits, keys matching
     ``allowed``, each checked from its headers before it is decompressed."""
-    import io
-
     raw = read_regular_file(path, MAX_NPZ_BYTES)
     if not raw:
         raise ValueError(f"{path.name}: empty file")
