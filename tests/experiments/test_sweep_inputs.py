@@ -118,7 +118,7 @@ def test_a_full_disk_stops_the_sweep_with_one_line_keeping_finished_cells(
     def no_space(*args, **kwargs):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
-    monkeypatch.setattr(bpns.workflow.collect, "save_demonstrations", no_space)
+    monkeypatch.setattr(bpns.workflow.collect, "write_demonstrations", no_space)
     cells = sweep_cells(CONFIG, {"cover": cover_env})
     store = CellStore(tmp_path)
     with pytest.raises(CellStoreError) as raised:
