@@ -177,16 +177,14 @@ def check_replay(
     Raises ``bpns.data.datasets.DatasetError`` for a file that is not a readable dataset."""
     total = count_demonstrations(path)
     n = min(total, limit or total)
-    physics = demo_physics(path)[:n]
-    if all(p.nominal for p in physics):
-        demos = progress(iter_demonstrations(path, env, range(n)), n, "replay", "task")
-        return ReplayCheck(tuple(replay(env, d, i) for i, d in enumerate(demos)))
-    reports = []
-    for i in progress(range(n), n, "replay", "task"):
-        own = env if physics[i].nominal else perturbed(env, physics[i])
-        (demo,) = iter_demonstrations(path, own, [i])
-        reports.append(replay(own, demo, i))
-    return ReplayCheck(tuple(reports))
+    physics = demo_physics(path)[:n]  # each demo loads into its own world; simulate it there
+    demos = progress(iter_demonstrations(path, env, range(n)), n, "replay", "task")
+    return ReplayCheck(
+        tuple(
+            replay(perturbed(env, p), d, i)
+            for i, (d, p) in enumerate(zip(demos, physics, strict=True))
+        )
+    )
 
 
 def demo_physics(path: str | os.PathLike) -> list[Perturbation]:
