@@ -91,8 +91,14 @@ WRIST_ALIGNED = 0.05
 NEAR_GRASP = 0.06
 OPEN = 0.038  # fingers this open (per finger) count as open
 GRASP_NOISE, PLACE_NOISE, PRESS_NOISE = 0.002, 0.015, 0.004
-UPRIGHT = 0.15  # pot tilt below which the pot counts as upright
+UPRIGHT = 0.15  # hand tilt below which the pot counts as upright
 SPOUT_ALIGNED, SPOUT_OFF = 0.006, 0.02
+# Hysteresis bands: a stateless policy on a noisy, delayed observation must not flip
+# between two motions at one threshold (close/reopen, lower/untilt), or it chatters there
+# until its horizon (the oracle under action noise and latency, docs/WORLDS.md).
+GRIP_BAND = 0.012  # closing fingers keep closing while the hand is this close above
+CLOSED_EMPTY = 0.006  # fingers closed this far hold nothing: open and try again
+POURING = 0.05  # a hand tilted this far has begun pouring: keep pouring
 
 
 _R, _P = Variable("?robot", ROBOT), Variable("?pot", POT)
@@ -207,8 +213,10 @@ def _grasp(
         return move_action(s, robot, np.array([*h[:2], FREE_Z]), 1.0)
     if not low and (err > ALIGNED_HIGH or werr > WRIST_ALIGNED):
         return move_action(s, robot, np.array([*target[:2], FREE_Z]), 1.0, wrist=wrist)
-    if h[2] > target[2] + 0.004:
-        if s.get(robot, "fingers") < 0.035:
+    fingers = s.get(robot, "fingers")
+    closing = CLOSED_EMPTY < fingers < 0.035 and h[2] <= target[2] + GRIP_BAND
+    if h[2] > target[2] + 0.004 and not closing:
+        if fingers < 0.035:
             return np.array([*(target[:2] - h[:2]), 0.0, 0.0, 0.0, 1.0])  # open first
         return slow_near(s, robot, target, 1.0, wrist=wrist)
     return move_action(s, robot, target, -1.0, wrist=wrist)
@@ -224,8 +232,11 @@ def _cup_below(s: State, pot: Object) -> Object | None:
 
 
 def _pour(s: State, robot: Object, pot: Object, cup: Object, tilt: float) -> np.ndarray:
-    """Tilt a pot still pouring elsewhere back, carry it over ``cup``, lower, tilt, pour."""
-    tilted = s.get(pot, "tilt") > UPRIGHT
+    """Tilt a pot still pouring elsewhere back, carry it over ``cup``, lower, tilt, pour.
+
+    Tilted means the *hand* is: a heavy pot in a slippery grasp sags forward in the
+    fingers, and untilting a hand that is level does not right it."""
+    tilted = s.get(robot, "tilt") > UPRIGHT
     if tilted:
         below = _cup_below(s, pot)
         if below is None:
@@ -244,8 +255,9 @@ def _pour(s: State, robot: Object, pot: Object, cup: Object, tilt: float) -> np.
         goal = h + goal_tip - tip
         goal[2] = SAFE_Z
         return move_action(s, robot, goal, -1.0)
-    if abs(tip[2] - goal_tip[2]) > POS_TOL:
-        return slow_near(s, robot, h + goal_tip - tip, -1.0)
+    pouring = s.get(robot, "tilt") > POURING
+    if abs(tip[2] - goal_tip[2]) > POS_TOL and not pouring:
+        return slow_near(s, robot, h + goal_tip - tip, -1.0, tilt=s.get(robot, "tilt"))
     return pour_step(s, robot, pot, cup, tilt, POUR_TURN)
 
 
