@@ -48,8 +48,12 @@ browser-deps:
 run: $(STAMP)
 	$(VENV)/bin/bpns run --env cover --demos $(N) --tasks $(TASKS) --timeout 30 --out $(OUT) --overwrite
 
+# Two pytest workers (CI has 2 cores; each worker holds ~1 GB, so more is yours to ask
+# for); a test file stays on one worker, so its module fixtures (a learned run, demos) are
+# built once. `make test TEST_WORKERS=0`: one process.
+TEST_WORKERS ?= 2
 test: $(STAMP) browser-deps
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 bench: $(STAMP)
 	$(PY) scripts/bench_control.py

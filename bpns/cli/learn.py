@@ -20,7 +20,8 @@ from bpns.cli.common import (
 )
 from bpns.cli.paths import capped_to_cores, check_skills_dir, usable_cores, writing
 from bpns.data.datasets import DatasetError
-from bpns.learning.config import learning_config_for
+from bpns.env.environment import Environment
+from bpns.learning.config import LearningConfig, learning_config_for
 from bpns.workflow import CannotLearnError, learn_to_directory
 
 HELP = "learn neuro-symbolic skills from demonstrations"
@@ -142,6 +143,30 @@ def run(args: argparse.Namespace) -> int:
     env = file_env(args.demos, None)
     threads = capped_to_cores(args.threads, "--threads")
     workers = usable_cores() if args.workers is None else capped_to_cores(args.workers, "--workers")
+    config = learning_config_from(args, env)
+    try:
+        with writing(args.out):
+            learned = learn_to_directory(
+                env,
+                args.demos,
+                args.out,
+                config,
+                args.limit,
+                threads,
+                progress,
+                stage_reporter(),
+                baselines=_baselines_config(args) if args.baselines else None,
+                workers=workers,
+            )
+    except (DatasetError, CannotLearnError) as err:
+        raise UserError(str(err)) from None
+    print_lines(learned)
+    return 0
+
+
+def learning_config_from(args: argparse.Namespace, env: Environment) -> LearningConfig:
+    """The learning settings of ``bpns learn``'s arguments: the environment's declared
+    settings (``learning_config_for``) where a flag is not given."""
     config = learning_config_for(
         env,
         seed=args.seed,
@@ -167,24 +192,7 @@ def run(args: argparse.Namespace) -> int:
                 for name in ("policy", "generator", "classifier")
             },
         )
-    try:
-        with writing(args.out):
-            learned = learn_to_directory(
-                env,
-                args.demos,
-                args.out,
-                config,
-                args.limit,
-                threads,
-                progress,
-                stage_reporter(),
-                baselines=_baselines_config(args) if args.baselines else None,
-                workers=workers,
-            )
-    except (DatasetError, CannotLearnError) as err:
-        raise UserError(str(err)) from None
-    print_lines(learned)
-    return 0
+    return config
 
 
 def _baselines_config(args: argparse.Namespace) -> BaselinesConfig:

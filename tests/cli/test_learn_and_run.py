@@ -144,24 +144,33 @@ def test_bad_learning_and_eval_input_is_one_line(tmp_path, args, message):
     assert not (tmp_path / "sk").exists()
 
 
-def test_learning_settings_come_from_the_environment_unless_given(run_dir, tmp_path):
-    def learned_config(*extra: str) -> dict:
+def test_learning_settings_come_from_the_environment_unless_given(run_dir, tmp_path, cover_env):
+    from bpns.cli import build_parser
+    from bpns.cli.learn import learning_config_from
+
+    def learned_config(*extra: str) -> dict:  # what `bpns learn` writes in skills.json
         out = tmp_path / "sk"
         args = ["learn", str(run_dir / "demos.h5"), "--limit", "4", "--out", str(out)]
         assert main([*args, "--overwrite", *extra]) == 0
         return json.loads((out / "skills.json").read_text())["config"]
 
+    def config(*extra: str):  # the same arguments' settings, without learning
+        args = build_parser().parse_args(["learn", str(run_dir / "demos.h5"), *extra])
+        return learning_config_from(args, cover_env)
+
     cover = learned_config()  # Cover declares contact settling, nothing else
     assert cover["settle_steps"] == 4 and cover["near_goal_scale"] is None
     assert cover["anchor_parameters"] is True
-    given = learned_config("--near-goal-scale", "0.02", "--no-anchor", "--settle-steps", "2")
-    assert given["near_goal_scale"] == 0.02 and given["anchor_parameters"] is False
-    assert given["settle_steps"] == 2
-    assert learned_config("--near-goal-scale", "off")["near_goal_scale"] is None
     nets = ("policy", "generator", "classifier")
     assert all(cover[n]["input_margin"] == 0.1 for n in nets)
-    assert all(learned_config("--input-margin", "0.3")[n]["input_margin"] == 0.3 for n in nets)
-    assert all(learned_config("--input-margin", "off")[n]["input_margin"] is None for n in nets)
+    flags = ("--near-goal-scale", "0.02", "--no-anchor", "--settle-steps", "2")
+    given = learned_config(*flags, "--input-margin", "0.3")
+    assert given["near_goal_scale"] == 0.02 and given["anchor_parameters"] is False
+    assert given["settle_steps"] == 2
+    assert all(given[n]["input_margin"] == 0.3 for n in nets)
+    assert config().near_goal_scale is None and config().settle_steps == 4
+    assert config("--near-goal-scale", "off").near_goal_scale is None
+    assert all(getattr(config("--input-margin", "off"), n).input_margin is None for n in nets)
 
 
 def test_a_damaged_skills_directory_is_reported_not_raised(run_dir, tmp_path):

@@ -37,7 +37,7 @@ def test_learn_baselines_writes_the_models_and_nosubgoal_skills(skills_with_base
 def test_every_baseline_evaluates_as_an_approach_row(skills_with_baselines, tmp_path, capsys):
     out = tmp_path / "eval"
     argv = ["eval", "--skills", str(skills_with_baselines), "--approach", *BASELINES]
-    code = main([*argv, "-n", "1", "--timeout", "20", "--workers", "1", "--out", str(out)])
+    code = main([*argv, "-n", "1", "--timeout", "5", "--workers", "1", "--out", str(out)])
     assert code in (0, 1)  # 1: some row solved nothing (few demos, few training steps)
     reports = json.loads((out / "results.json").read_text())
     assert [r["approach"] for r in reports] == list(BASELINES)
