@@ -155,7 +155,8 @@ def test_learning_settings_come_from_the_environment_unless_given(run_dir, tmp_p
         return json.loads((out / "skills.json").read_text())["config"]
 
     def config(*extra: str):  # the same arguments' settings, without learning
-        args = build_parser().parse_args(["learn", str(run_dir / "demos.h5"), *extra])
+        argv = ["learn", str(run_dir / "demos.h5"), "--out", str(tmp_path / "unused"), *extra]
+        args = build_parser().parse_args(argv)
         return learning_config_from(args, cover_env)
 
     cover = learned_config()  # Cover declares contact settling, nothing else
