@@ -58,22 +58,24 @@ def nonnegative(text: str) -> int:
     return whole_at_least(text, 0)
 
 
-def nonnegative_float(text: str) -> float:
+def _float(text: str) -> float:
     try:
-        v = float(text)
+        return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not v >= 0.0:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text}")
-    if not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text}")
+
+
+def nonnegative_float(text: str) -> float:
+    v = _float(text)
+    if not (math.isfinite(v) and v >= 0.0):  # nan fails every comparison: refused here
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text}")
     return v
 
 
 def positive_float(text: str) -> float:
-    v = nonnegative_float(text)
-    if v == 0.0:
-        raise argparse.ArgumentTypeError("expected a number > 0, got 0")
+    v = _float(text)
+    if not (math.isfinite(v) and v > 0.0):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text}")
     return v
 
 

@@ -54,6 +54,10 @@ def run(args: argparse.Namespace) -> int:
         if args.png == out:
             raise UserError(f"--png {args.png}: the same file as --out")
         check_output_file(args.png, "--png", args.overwrite, [args.file])
+        if args.png.suffix != ".png":
+            raise UserError(f"--png {args.png}: give a .png name")
+    if out.suffix != ".mp4":
+        raise UserError(f"--out {out}: give an .mp4 name (the video is H.264 in MP4)")
     try:
         if rollouts is not None:
             row = rollouts.row(args.task)

@@ -66,15 +66,24 @@ def count_layers(arrays: Mapping[str, np.ndarray], prefix: str = "") -> int:
 
 
 def layers_from_arrays(arrays: Mapping[str, np.ndarray], prefix: str = "") -> Layers:
-    """The layers :func:`layers_to_arrays` saved, as float64 copies (KeyError if a bias
-    is missing; empty if there is no weight under ``prefix``)."""
-    return tuple(
-        (
-            np.array(arrays[f"{prefix}w{k}"], dtype=np.float64),
-            np.array(arrays[f"{prefix}b{k}"], dtype=np.float64),
-        )
-        for k in range(count_layers(arrays, prefix))
-    )
+    """The layers :func:`layers_to_arrays` saved, as float64 copies (empty if there is no
+    weight under ``prefix``). KeyError naming the first weight or bias missing from the
+    run ``w0, b0 ... wN, bN`` (a hand-edited file that lost a middle or last layer would
+    otherwise load as a shorter network)."""
+    start = len(prefix) + 1
+    indices = {
+        int(key[start:])
+        for key in arrays
+        if key[start - 1 : start] in ("w", "b") and key.startswith(prefix) and key[start:].isdigit()
+    }
+    layers = []
+    for k in range(max(indices, default=-1) + 1):
+        for name in (f"{prefix}w{k}", f"{prefix}b{k}"):
+            if name not in arrays:
+                raise KeyError(name)
+        w, b = arrays[f"{prefix}w{k}"], arrays[f"{prefix}b{k}"]
+        layers.append((np.array(w, dtype=np.float64), np.array(b, dtype=np.float64)))
+    return tuple(layers)
 
 
 def check_layers(layers: Layers, fan_in: int, where: str) -> int:

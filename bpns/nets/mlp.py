@@ -120,7 +120,7 @@ class MLPParams:
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str = "") -> MLPParams:
         if count_layers(arrays, prefix) == 0:
-            raise KeyError(f"no network weights with prefix {prefix!r}")
+            raise KeyError(f"{prefix}w0")  # not one layer under the prefix
         get = lambda key: np.array(arrays[f"{prefix}{key}"], dtype=np.float64)  # noqa: E731
         boxed = f"{prefix}input_low" in arrays and f"{prefix}input_high" in arrays
         layers = layers_from_arrays(arrays, prefix)

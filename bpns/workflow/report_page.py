@@ -48,7 +48,8 @@ class PageWritten:
 
     def line(self) -> str:
         more = f", {self.left_out} left out (time budget)" if self.left_out else ""
-        return f"wrote {self.path} ({self.videos} videos{more}; opens offline in a browser)"
+        videos = f"{self.videos} video" + ("" if self.videos == 1 else "s")
+        return f"wrote {self.path} ({videos}{more}; opens offline in a browser)"
 
 
 def video_name(approach: str, task: int) -> str:

@@ -126,6 +126,15 @@ CASES = [
     (_set("dims/state_dims", lambda d: d + 100), r"state_dims .* out of range"),
     (_set("dims/size", lambda s: s + 1), r"scope size"),
     (_set("net/input_std", lambda s: -s), r"input_std must be positive"),
+    # edited by hand: a key missing or one more than save_skills writes, an array missing
+    (_index(lambda i: i["skills"][0].pop("horizon")), r"skill Holding lacks the key 'horizon'"),
+    (_index(lambda i: i["skills"][0].__setitem__("horizn", 5)), r"unknown key 'horizn'"),
+    (_index(lambda i: i.__setitem__("note", "mine")), r"the index has the unknown key 'note'"),
+    (_index(lambda i: i.pop("predicates")), r"the index lacks the key 'predicates'"),
+    (
+        lambda path: _edit_npz(path, lambda a: a.pop("net/w2")),
+        r"Holding.policy.npz lacks the array 'net/w2'",
+    ),
 ]
 
 

@@ -153,9 +153,36 @@ def _atoms_ok(x: Any) -> bool:
     )
 
 
+# The keys ``save_skills`` writes: a hand-edited index with one missing or one more is
+# refused (an unknown key would be silently ignored, a typo'd one silently defaulted).
+INDEX_KEYS = frozenset(
+    {"format", "version", "env", "types", "predicates", "config", "stats", "skills"}
+)
+_SKILL_KEYS = frozenset(
+    {"name", "parameters", "preconditions", "add_effects", "delete_effects", "horizon"}
+)
+LEARNED_SKILL_KEYS = _SKILL_KEYS | {"policy", "sampler"}
+GIVEN_SKILL_KEYS = _SKILL_KEYS | {"policy", "sampler", "given", "binding"}
+OPTIONAL_SKILL_KEYS = frozenset({"order_key"})  # absent in directories of Op<k>-named skills
+
+
+def check_keys(
+    entry: Mapping[str, Any], required: frozenset[str], optional: frozenset[str], where: str
+) -> None:
+    """ValueError naming the first key ``entry`` lacks, or the first it has beyond
+    ``required`` and ``optional``."""
+    missing = sorted(required - entry.keys())
+    if missing:
+        raise ValueError(f"{where} lacks the key {missing[0]!r}")
+    unknown = sorted(entry.keys() - required - optional)
+    if unknown:
+        raise ValueError(f"{where} has the unknown key {unknown[0]!r}")
+
+
 def check_index_schema(index: Mapping[str, Any]) -> None:
     """Types of every field of a (format-checked) skills index; ValueError naming the
     first wrong one."""
+    check_keys(index, INDEX_KEYS, frozenset(), "the index")
     _require(index.get("env") is None or isinstance(index["env"], str), "'env' is not a string")
     for key, inner in (("types", "features"), ("predicates", "types")):
         entries = index.get(key)
@@ -176,6 +203,8 @@ def check_index_schema(index: Mapping[str, Any]) -> None:
         _require(isinstance(e, dict) and isinstance(e.get("name"), str), f"bad skill {_short(e)}")
         name = e["name"]
         names.append(name)
+        required = GIVEN_SKILL_KEYS if e.get("given") is not None else LEARNED_SKILL_KEYS
+        check_keys(e, required, OPTIONAL_SKILL_KEYS, f"skill {name}")
         params = e.get("parameters")
         _require(
             isinstance(params, list)

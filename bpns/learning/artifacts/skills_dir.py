@@ -335,13 +335,13 @@ def _read_skill(
             None if horizon is None else int(horizon),
         )
     policy_path = checks.confined_file(directory, entry["policy"])
-    policy = LearnedPolicy.from_arrays(checks.read_npz(policy_path, checks.POLICY_KEYS))
+    policy = _from_arrays(LearnedPolicy, policy_path, checks.POLICY_KEYS)
     sampler: LearnedSampler | CurrentStateSampler
     if entry["sampler"] is None:
         sampler = CurrentStateSampler()
     else:
         sampler_path = checks.confined_file(directory, entry["sampler"])
-        sampler = LearnedSampler.from_arrays(checks.read_npz(sampler_path, checks.SAMPLER_KEYS))
+        sampler = _from_arrays(LearnedSampler, sampler_path, checks.SAMPLER_KEYS)
     for dims in (policy.dims, getattr(sampler, "dims", policy.dims)):
         n = dims.num_objects
         if n is not None and not 1 <= n <= len(op.parameters):
@@ -364,6 +364,15 @@ def _read_skill(
         op.name,
     )
     return Skill(op, policy, sampler, None if horizon is None else int(horizon))
+
+
+def _from_arrays(cls: Any, path: Path, allowed: Any) -> Any:
+    """``cls.from_arrays`` of the weights file ``path``; a missing array is named with
+    its file (a bare KeyError said neither)."""
+    try:
+        return cls.from_arrays(checks.read_npz(path, allowed))
+    except KeyError as err:
+        raise ValueError(f"{path.name} lacks the array {err.args[0]!r}") from None
 
 
 def _config_from_json(d: Mapping[str, Any]) -> LearningConfig:
