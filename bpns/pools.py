@@ -96,8 +96,13 @@ def capped_workers(requested: int) -> int:
 
 def worker_context() -> multiprocessing.context.BaseContext:
     """A start method that does not copy the caller's memory: forkserver, else spawn."""
-    methods = multiprocessing.get_all_start_methods()
-    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    context = multiprocessing.get_context("forkserver")
+    # before its first worker (later calls change nothing): bpns.worker_start keeps a
+    # worker that could not start because its pool was shut down from printing a traceback
+    context.set_forkserver_preload(["__main__", "bpns.worker_start"])
+    return context
 
 
 def make_pool(

@@ -12,7 +12,9 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import signal
 import sys
+import threading
 import warnings
 from collections.abc import Iterator, Sequence
 from types import ModuleType
@@ -62,7 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    with _numeric_warnings_held() as held:
+    with _numeric_warnings_held() as held, _terminate_unwinds():
         try:
             code = int(COMMANDS[args.command].run(args) or 0)
         except BpnsError as err:  # every error the library reports, one line
@@ -75,6 +77,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 held.release()
                 raise
             return _error(problem)
+        except Terminated:
+            print("bpns: terminated", file=sys.stderr)
+            return 128 + signal.SIGTERM
         except KeyboardInterrupt:
             print("bpns: interrupted", file=sys.stderr)
             return 130
@@ -83,6 +88,29 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         held.release()
         return code
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (``kill``, a batch scheduler's stop), raised where the command is so that it
+    unwinds as Ctrl-C does: temporary files removed, worker processes stopped, every
+    finished output kept. Left to its default a SIGTERM killed the process on the spot,
+    and worker processes it had started could outlive it."""
+
+
+@contextlib.contextmanager
+def _terminate_unwinds() -> Iterator[None]:
+    if threading.current_thread() is not threading.main_thread():
+        yield  # signal handlers can only be set from the main thread
+        return
+
+    def stop(signum: int, frame: object) -> None:
+        raise Terminated
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 class _Held:

@@ -1,0 +1,90 @@
+"""A command stopped by SIGTERM or Ctrl-C ends in one line and keeps every earlier output."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from bpns import worker_start
+
+
+def _bpns(*args: str) -> subprocess.Popen:
+    env = {**os.environ, "BPNS_PROGRESS": "0"}
+    return subprocess.Popen(
+        [sys.executable, "-m", "bpns.cli", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+
+
+def _digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@pytest.mark.parametrize(
+    ("sig", "code", "line"),
+    [
+        (signal.SIGTERM, 143, "bpns: terminated"),
+        (signal.SIGINT, 130, "bpns: interrupted"),
+    ],
+)
+def test_a_stopped_demos_run_says_so_in_one_line_and_keeps_the_old_file(
+    cover_demo_file, tmp_path, sig, code, line
+):
+    old = tmp_path / "demos.h5"
+    old.write_bytes(Path(cover_demo_file).read_bytes())
+    before = _digest(old)
+    proc = _bpns(
+        "demos", "--env", "cover", "-n", "40", "--workers", "2", "--out", str(old), "--overwrite"
+    )
+    time.sleep(4.0)  # the worker pool is up and demonstrating
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == code, err
+    assert err.strip().splitlines() == [line], err  # no worker's traceback beneath it
+    assert _digest(old) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["demos.h5"]  # no temporary left
+
+
+def _raise_in(filename: str, function: str, error: BaseException):
+    namespace: dict = {}
+    source = f"def {function}(error):\n    raise error\n"
+    exec(compile(source, filename, "exec"), namespace)  # a frame named like the real one
+    try:
+        namespace[function](error)
+    except BaseException as caught:  # noqa: BLE001 (handed to the hook as the forkserver does)
+        return type(caught), caught, caught.__traceback__
+
+
+def test_a_worker_whose_pool_is_gone_exits_without_a_traceback(capsys, monkeypatch):
+    shown = []
+    monkeypatch.setattr(worker_start, "_DEFAULT_HOOK", lambda *exc: shown.append(exc[0]))
+    gone = _raise_in(
+        "/usr/lib/python3/multiprocessing/synchronize.py",
+        "__setstate__",
+        FileNotFoundError(2, "No such file or directory"),
+    )
+    worker_start._quiet_when_the_pool_is_gone(*gone)
+    assert shown == []
+    for other in (
+        _raise_in(
+            "/usr/lib/python3/multiprocessing/synchronize.py", "__setstate__", ValueError("x")
+        ),
+        _raise_in("/work/plugin.py", "__setstate__", FileNotFoundError(2, "missing")),
+        _raise_in(
+            "/usr/lib/python3/multiprocessing/synchronize.py",
+            "acquire",
+            FileNotFoundError(2, "missing"),
+        ),
+    ):
+        worker_start._quiet_when_the_pool_is_gone(*other)
+    assert shown == [ValueError, FileNotFoundError, FileNotFoundError]
