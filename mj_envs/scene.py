@@ -36,16 +36,36 @@ def make_arena(
     base: :mod:`mj_envs.robots.mobile_panda`).
     """
     arena = mjcf.RootElement(model=model_name)
+    _set_physics(arena, timestep, domain_userdata)
+    _set_visual(arena)
+    _add_materials(arena)
+    _add_room(arena.worldbody)
+    _add_cameras(arena.worldbody)
+    if robot is not None:
+        arena.attach(mjcf.from_xml_string(robot_mjcf_text(robot), model_dir=str(robot.mjcf.parent)))
+    return arena
+
+
+def _set_physics(arena: mjcf.RootElement, timestep: float, domain_userdata: int) -> None:
+    """Solver settings under which the fingers hold a grasp, and the userdata slots."""
     opt = arena.option
     opt.timestep = timestep
     opt.integrator = "implicitfast"
     opt.cone = "elliptic"
     opt.impratio = 10
     arena.size.nuserdata = DOMAIN_USERDATA_START + domain_userdata
+
+
+def _set_visual(arena: mjcf.RootElement) -> None:
+    """A soft headlight and an offscreen buffer large enough for the video resolutions."""
     arena.visual.headlight.ambient = (0.35, 0.35, 0.35)
     arena.visual.headlight.diffuse = (0.5, 0.5, 0.5)
     getattr(arena.visual, "global").offwidth = 1280
     getattr(arena.visual, "global").offheight = 960
+
+
+def _add_materials(arena: mjcf.RootElement) -> None:
+    """The sky, the checkered floor and the wooden table top (looks only)."""
     arena.asset.add(
         "texture",
         name="sky",
@@ -77,7 +97,10 @@ def make_arena(
         height=64,
     )
     arena.asset.add("material", name="table_mat", texture="wood", specular=0.1)
-    wb = arena.worldbody
+
+
+def _add_room(wb: mjcf.Element) -> None:
+    """The key light, a floor that collides with nothing and the table, world geometry."""
     wb.add("light", name="key", pos=(0.6, -0.8, 1.8), dir=(-0.2, 0.5, -1), diffuse=(0.6, 0.6, 0.6))
     wb.add(
         "geom",
@@ -100,6 +123,11 @@ def make_arena(
         conaffinity=OBJECT_CONAFFINITY,
         friction=(0.6, 0.02, 0.001),
     )
+
+
+def _add_cameras(wb: mjcf.Element) -> None:
+    """The overview, front and top cameras; the front one follows ``workspace_focus``,
+    a body domains move to where their task happens."""
     focus = wb.add("body", name="workspace_focus", pos=(0.45, 0.0, 0.12))
     wb.add(
         "camera",
@@ -110,9 +138,6 @@ def make_arena(
     )
     wb.add("camera", name="front", pos=(1.6, 0.0, 0.55), mode="targetbody", target=focus, fovy=40)
     wb.add("camera", name="top", pos=(0.5, 0.0, 1.6), quat=(0.7071068, 0, 0, 0.7071068), fovy=45)
-    if robot is not None:
-        arena.attach(mjcf.from_xml_string(robot_mjcf_text(robot), model_dir=str(robot.mjcf.parent)))
-    return arena
 
 
 def look_at(pos: tuple[float, ...], target: tuple[float, ...]) -> tuple[float, ...]:
