@@ -153,7 +153,7 @@ def add_bin(
     """
     fn = "add_bin"
     _check_name(fn, name)
-    x, y, surface_z = (_finite(fn, k, v) for k, v in (("x", x), ("y", y), ("surface_z", surface_z)))
+    x, y, surface_z = _position(fn, x, y, surface_z)
     sx, sy = _pair(fn, "inner_size", inner_size)
     h = _positive(fn, "wall_height", wall_height)
     t = _positive(fn, "wall_thickness", wall_thickness)
@@ -165,12 +165,7 @@ def add_bin(
     rgba = _rgba(fn, rgba)
     hx, hy = sx / 2, sy / 2
     body = arena.worldbody.add("body", name=name, pos=(x, y, surface_z))
-    geom = {
-        "type": "box",
-        "rgba": rgba,
-        "contype": OBJECT_CONTYPE,
-        "conaffinity": OBJECT_CONAFFINITY,
-    }
+    geom = _static_box(rgba)
     body.add("geom", name=f"{name}_floor", size=(hx, hy, t / 2), pos=(0, 0, t / 2), **geom)
     walls = (f"{name}_wall_xneg", f"{name}_wall_xpos", f"{name}_wall_yneg", f"{name}_wall_ypos")
     for wall, sign in zip(walls[:2], (-1, 1), strict=True):  # span the corners
@@ -234,7 +229,38 @@ def add_shelf(
     """
     fn = "add_shelf"
     _check_name(fn, name)
-    x, y, surface_z = (_finite(fn, k, v) for k, v in (("x", x), ("y", y), ("surface_z", surface_z)))
+    x, y, surface_z = _position(fn, x, y, surface_z)
+    sx, sy, h, bt, st = _shelf_sizes(fn, size, height, board_thickness, support, support_thickness)
+    rgba = _rgba(fn, rgba)
+    hx, hy = sx / 2, sy / 2
+    body = arena.worldbody.add("body", name=name, pos=(x, y, surface_z))
+    geom = _static_box(rgba)
+    body.add("geom", name=f"{name}_board", size=(hx, hy, bt / 2), pos=(0, 0, h - bt / 2), **geom)
+    under = h - bt  # from the surface to the board's underside
+    if support == "legs":
+        supports = _add_legs(body, name, hx, hy, st, under, geom)
+    else:
+        supports = _add_back(body, name, hx, hy, st, under, geom)
+    return Shelf(
+        name=name,
+        centre=(x, y, surface_z + h),
+        half_size=(hx, hy),
+        top_z=surface_z + h,
+        board_geom=f"{name}_board",
+        support_geoms=supports,
+    )
+
+
+def _shelf_sizes(
+    fn: str,
+    size: Sequence[float],
+    height: float,
+    board_thickness: float,
+    support: str,
+    support_thickness: float,
+) -> tuple[float, float, float, float, float]:
+    """A shelf's (sx, sy, height, board thickness, support thickness), checked, so that a
+    bad argument fails before anything is added to the arena."""
     sx, sy = _pair(fn, "size", size)
     h = _positive(fn, "height", height)
     bt = _positive(fn, "board_thickness", board_thickness)
@@ -252,45 +278,49 @@ def add_shelf(
             f"{fn}: support_thickness ({support_thickness!r}) does not fit under a board of "
             f"size {tuple(size)!r}"
         )
-    rgba = _rgba(fn, rgba)
-    hx, hy = sx / 2, sy / 2
-    body = arena.worldbody.add("body", name=name, pos=(x, y, surface_z))
-    geom = {
+    return sx, sy, h, bt, st
+
+
+def _add_legs(
+    body: mjcf.Element, name: str, hx: float, hy: float, st: float, under: float, geom: dict
+) -> tuple[str, ...]:
+    """Four square legs under the board's corners, from the surface to its underside."""
+    supports = tuple(f"{name}_leg{i}" for i in range(4))
+    corners = [(cx, cy) for cx in (-1, 1) for cy in (-1, 1)]
+    for leg, (cx, cy) in zip(supports, corners, strict=True):
+        body.add(
+            "geom",
+            name=leg,
+            size=(st / 2, st / 2, under / 2),
+            pos=(cx * (hx - st / 2), cy * (hy - st / 2), under / 2),
+            **geom,
+        )
+    return supports
+
+
+def _add_back(
+    body: mjcf.Element, name: str, hx: float, hy: float, st: float, under: float, geom: dict
+) -> tuple[str, ...]:
+    """One panel under the board's +x edge, so the space under it is open from the robot."""
+    supports = (f"{name}_back",)
+    body.add(
+        "geom",
+        name=supports[0],
+        size=(st / 2, hy, under / 2),
+        pos=(hx - st / 2, 0, under / 2),
+        **geom,
+    )
+    return supports
+
+
+def _static_box(rgba: tuple[float, ...]) -> dict:
+    """A box geom's attributes as world geometry (see the module docstring)."""
+    return {
         "type": "box",
         "rgba": rgba,
         "contype": OBJECT_CONTYPE,
         "conaffinity": OBJECT_CONAFFINITY,
     }
-    body.add("geom", name=f"{name}_board", size=(hx, hy, bt / 2), pos=(0, 0, h - bt / 2), **geom)
-    under = h - bt  # from the surface to the board's underside
-    if support == "legs":
-        supports = tuple(f"{name}_leg{i}" for i in range(4))
-        corners = [(cx, cy) for cx in (-1, 1) for cy in (-1, 1)]
-        for leg, (cx, cy) in zip(supports, corners, strict=True):
-            body.add(
-                "geom",
-                name=leg,
-                size=(st / 2, st / 2, under / 2),
-                pos=(cx * (hx - st / 2), cy * (hy - st / 2), under / 2),
-                **geom,
-            )
-    else:
-        supports = (f"{name}_back",)
-        body.add(
-            "geom",
-            name=supports[0],
-            size=(st / 2, hy, under / 2),
-            pos=(hx - st / 2, 0, under / 2),
-            **geom,
-        )
-    return Shelf(
-        name=name,
-        centre=(x, y, surface_z + h),
-        half_size=(hx, hy),
-        top_z=surface_z + h,
-        board_geom=f"{name}_board",
-        support_geoms=supports,
-    )
 
 
 # -- argument checks: a ValueError that names the argument and the value --------------------
@@ -299,6 +329,11 @@ def add_shelf(
 def _check_name(fn: str, name: object) -> None:
     if not isinstance(name, str) or not name:
         raise ValueError(f"{fn}: name must be a non-empty string, got {name!r}")
+
+
+def _position(fn: str, x: object, y: object, surface_z: object) -> tuple[float, float, float]:
+    """``x``, ``y`` and ``surface_z`` as finite floats (m), checked in that order."""
+    return _finite(fn, "x", x), _finite(fn, "y", y), _finite(fn, "surface_z", surface_z)
 
 
 def _finite(fn: str, label: str, value: object) -> float:
