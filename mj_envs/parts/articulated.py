@@ -62,7 +62,7 @@ import mujoco
 import numpy as np
 from dm_control import mjcf
 
-from mj_envs.parts.containers import _check_name, _rgba
+from mj_envs.parts.containers import _check_name, _position, _rgba
 from mj_envs.parts.objects import GRIPPABLE_FRICTION
 from mj_envs.scene import OBJECT_CONAFFINITY, OBJECT_CONTYPE
 
@@ -216,88 +216,22 @@ def add_drawer(
     inside or the handle does not fit on the front panel, a position is NaN or infinite,
     or ``name`` or a colour is malformed.
     """
-    fn = "add_drawer"
-    _check_name(fn, name)
-    x, y, surface_z = (_finite(fn, k, v) for k, v in (("x", x), ("y", y), ("surface_z", surface_z)))
-    sx, sy, sz = _triple(fn, "size", size)
-    travel = _positive(fn, "travel", travel)
-    t = _positive(fn, "wall_thickness", wall_thickness)
-    damping = _non_negative(fn, "damping", damping, "N s/m")
-    mass = _positive(fn, "mass", mass, "kg")
-    c = _positive(fn, "handle_clearance", handle_clearance)
-    r = _positive(fn, "handle_radius", handle_radius)
-    rgba, drawer_rgba, handle_rgba = (_rgba(fn, v) for v in (rgba, drawer_rgba, handle_rgba))
-    g = PART_GAP
-    dx, hyd, hd = sx - t - g, sy / 2 - t - g, sz - 2 * t - 2 * g  # drawer's outer extents
-    if dx <= 2 * t or hyd <= t or hd <= t:
-        raise ValueError(
-            f"{fn}: size {tuple(size)!r} leaves no inside for a drawer with walls "
-            f"{wall_thickness!r} thick (a {PART_GAP} m gap around it)"
-        )
-    if travel > dx:
-        raise ValueError(
-            f"{fn}: travel ({travel!r}) exceeds the drawer's depth ({dx!r} m = size[0] - "
-            "wall_thickness - PART_GAP): the drawer would leave the carcass"
-        )
-    if 2 * r > hd - t or 4 * r > 2 * hyd:
-        raise ValueError(
-            f"{fn}: handle_radius ({handle_radius!r}) is too large for a front panel "
-            f"{hd - t!r} m high and {2 * hyd!r} m wide"
-        )
-    length = min(HANDLE_LENGTH, 2 * hyd) if handle_length is None else handle_length
-    length = _positive(fn, "handle_length", length)
-    if length > 2 * hyd or length < 4 * r:
-        raise ValueError(
-            f"{fn}: handle_length ({length!r}) must be between 4 handle radii "
-            f"({4 * r!r}) and the drawer's width ({2 * hyd!r})"
-        )
-    carcass = arena.worldbody.add("body", name=name, pos=(x, y, surface_z))
-    carcass_geoms = _add_carcass(carcass, name, sx, sy, sz, t, rgba)
-    drawer = carcass.add("body", name=f"{name}_drawer", pos=(-sx / 2 + dx / 2, 0, t + g))
-    drawer.add(
-        "joint",
-        name=f"{name}_slide",
-        type="slide",
-        axis=(-1, 0, 0),  # qpos = opening, positive towards the robot
-        range=(0.0, travel),
-        limited=True,
-        damping=damping,
-        solreflimit=LIMIT_SOLREF,
+    spec = _drawer_spec(
+        name,
+        (x, y, surface_z),
+        size,
+        travel,
+        wall_thickness,
+        damping,
+        mass,
+        (handle_length, handle_clearance, handle_radius),
+        (rgba, drawer_rgba, handle_rgba),
     )
-    wall_hz = (hd - t) / 2  # walls stand on the floor, up to the drawer's top
-    boxes = {
-        f"{name}_drawer_floor": ((dx / 2, hyd, t / 2), (0, 0, t / 2)),
-        f"{name}_drawer_front": ((t / 2, hyd, wall_hz), (-dx / 2 + t / 2, 0, t + wall_hz)),
-        f"{name}_drawer_back": ((t / 2, hyd, wall_hz), (dx / 2 - t / 2, 0, t + wall_hz)),
-        f"{name}_drawer_yneg": ((dx / 2 - t, t / 2, wall_hz), (0, -(hyd - t / 2), t + wall_hz)),
-        f"{name}_drawer_ypos": ((dx / 2 - t, t / 2, wall_hz), (0, hyd - t / 2, t + wall_hz)),
-    }
-    bar_x, bar_z = -dx / 2 - c - r, t + wall_hz  # the front face is at -dx / 2
-    handle = _handle_shapes(name, (bar_x, 0.0, bar_z), -dx / 2, length, r, "y")
-    masses = _split_mass(mass, [s for s, _ in boxes.values()], handle)
-    for (geom, (half, pos)), m in zip(boxes.items(), masses[: len(boxes)], strict=True):
-        drawer.add("geom", name=geom, size=half, pos=pos, mass=m, **_geom_kw(drawer_rgba))
-    _add_handle(drawer, handle, masses[len(boxes) :], handle_rgba)
+    carcass = arena.worldbody.add("body", name=name, pos=(spec.x, spec.y, spec.surface_z))
+    carcass_geoms = _add_carcass(carcass, name, spec.sx, spec.sy, spec.sz, spec.t, spec.rgba)
+    drawer_geoms = _add_drawer_part(carcass, spec)
     arena.contact.add("exclude", body1=name, body2=f"{name}_drawer")
-    floor_z = surface_z + 2 * t + g
-    cx = x - sx / 2 + dx / 2
-    return Drawer(
-        name=name,
-        joint=f"{name}_slide",
-        carcass_body=name,
-        drawer_body=f"{name}_drawer",
-        handle_geom=f"{name}_handle",
-        handle_post_geoms=(f"{name}_handle_post0", f"{name}_handle_post1"),
-        carcass_geoms=carcass_geoms,
-        drawer_geoms=tuple(boxes),  # type: ignore[arg-type]
-        travel=travel,
-        handle_closed=(cx + bar_x, y, surface_z + t + g + bar_z),
-        front_x=x - sx / 2,
-        floor_centre=(cx, y, floor_z),
-        inner_half=(dx / 2 - t, hyd - t),
-        floor_z=floor_z,
-        rim_z=surface_z + t + g + hd,
-    )
+    return _describe_drawer(spec, carcass_geoms, drawer_geoms)
 
 
 def add_hinged_door(
@@ -356,94 +290,22 @@ def add_hinged_door(
     the walls leave no inside or the handle does not fit on the door, a position is NaN or
     infinite, or ``name`` or a colour is malformed.
     """
-    fn = "add_hinged_door"
-    _check_name(fn, name)
-    x, y, surface_z = (_finite(fn, k, v) for k, v in (("x", x), ("y", y), ("surface_z", surface_z)))
-    w = _positive(fn, "width", width)
-    h = _positive(fn, "height", height)
-    if hinge_side not in ("left", "right"):
-        raise ValueError(f"{fn}: hinge_side must be 'left' or 'right', got {hinge_side!r}")
-    d = _positive(fn, "depth", depth)
-    angle = _positive(fn, "max_angle", max_angle, "rad")
-    if angle > math.pi:
-        raise ValueError(f"{fn}: max_angle must be at most pi (rad), got {max_angle!r}")
-    t = _positive(fn, "wall_thickness", wall_thickness)
-    damping = _non_negative(fn, "damping", damping, "N m s/rad")
-    mass = _positive(fn, "mass", mass, "kg")
-    c = _positive(fn, "handle_clearance", handle_clearance)
-    r = _positive(fn, "handle_radius", handle_radius)
-    inset = _positive(fn, "handle_inset", handle_inset)
-    rgba, door_rgba, handle_rgba = (_rgba(fn, v) for v in (rgba, door_rgba, handle_rgba))
-    if d <= t or w <= 2 * t or h <= 2 * t:
-        raise ValueError(
-            f"{fn}: depth {depth!r}, width {width!r} and height {height!r} leave no inside "
-            f"for a cabinet with walls {wall_thickness!r} thick"
-        )
-    g = PART_GAP
-    panel_w, panel_h = w - 2 * g, h - 2 * g
-    if inset < r or inset > panel_w / 2:
-        raise ValueError(
-            f"{fn}: handle_inset ({handle_inset!r}) must be between handle_radius ({r!r}) "
-            f"and half the door's width ({panel_w / 2!r})"
-        )
-    length = min(HANDLE_LENGTH, panel_h) if handle_length is None else handle_length
-    length = _positive(fn, "handle_length", length)
-    if length > panel_h or length < 4 * r:
-        raise ValueError(
-            f"{fn}: handle_length ({length!r}) must be between 4 handle radii "
-            f"({4 * r!r}) and the door's height ({panel_h!r})"
-        )
-    s = 1.0 if hinge_side == "right" else -1.0  # the door extends from its hinge along s*y
-    carcass = arena.worldbody.add("body", name=name, pos=(x, y, surface_z))
-    carcass_geoms = _add_carcass(carcass, name, d, w, h, t, rgba)
-    hinge_rel = (-d / 2 - g, -s * w / 2, h / 2)
-    door = carcass.add("body", name=f"{name}_door", pos=hinge_rel)
-    axis = (0.0, 0.0, s)  # a positive turn swings the free edge towards -x
-    if arena.compiler.angle is None:  # MJCF's default unit is degrees; the Panda's radians
-        arena.compiler.angle = "radian"
-    unit = 1.0 if arena.compiler.angle == "radian" else 180.0 / math.pi
-    door.add(
-        "joint",
-        name=f"{name}_hinge",
-        type="hinge",
-        axis=axis,
-        range=(0.0, angle * unit),
-        limited=True,
-        damping=damping,
-        solreflimit=LIMIT_SOLREF,
+    spec = _door_spec(
+        name,
+        (x, y, surface_z),
+        (width, height, depth, wall_thickness),
+        hinge_side,
+        max_angle,
+        damping,
+        mass,
+        (handle_length, handle_clearance, handle_radius, handle_inset),
+        (rgba, door_rgba, handle_rgba),
     )
-    panel_half = (t / 2, panel_w / 2, panel_h / 2)
-    panel_pos = (-t / 2, s * w / 2, 0.0)
-    bar = (-t - c - r, s * (w - g - inset), 0.0)  # the panel's front face is at -t
-    handle = _handle_shapes(name, bar, -t, length, r, "z")
-    masses = _split_mass(mass, [panel_half], handle)
-    door.add(
-        "geom",
-        name=f"{name}_door_panel",
-        size=panel_half,
-        pos=panel_pos,
-        mass=masses[0],
-        **_geom_kw(door_rgba),
-    )
-    _add_handle(door, handle, masses[1:], handle_rgba)
+    carcass = arena.worldbody.add("body", name=name, pos=(spec.x, spec.y, spec.surface_z))
+    carcass_geoms = _add_carcass(carcass, name, spec.d, spec.w, spec.h, spec.t, spec.rgba)
+    _add_door_part(arena, carcass, spec)
     arena.contact.add("exclude", body1=name, body2=f"{name}_door")
-    hx, hy, hz = x + hinge_rel[0], y + hinge_rel[1], surface_z + hinge_rel[2]
-    return HingedDoor(
-        name=name,
-        joint=f"{name}_hinge",
-        carcass_body=name,
-        door_body=f"{name}_door",
-        panel_geom=f"{name}_door_panel",
-        handle_geom=f"{name}_handle",
-        handle_post_geoms=(f"{name}_handle_post0", f"{name}_handle_post1"),
-        carcass_geoms=carcass_geoms,
-        hinge_side=hinge_side,
-        max_angle=angle,
-        hinge_xyz=(hx, hy, hz),
-        hinge_axis=axis,
-        handle_closed=(hx + bar[0], hy + bar[1], hz),
-        front_x=x - d / 2,
-    )
+    return _describe_door(spec, carcass_geoms)
 
 
 # -- ids and readings ---------------------------------------------------------------------
@@ -532,6 +394,223 @@ def handle_xyz(data: mujoco.MjData, ids: DrawerIds | HingedDoorIds) -> np.ndarra
     return data.geom_xpos[ids.handle_geom].copy()
 
 
+# -- building the parts -------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _DrawerSpec:
+    """:func:`add_drawer`'s arguments once checked (m, kg, N s/m), with the drawer's
+    outer extents derived from them: ``dx`` deep, ``2 * hyd`` wide, ``hd`` high."""
+
+    name: str
+    x: float
+    y: float
+    surface_z: float
+    sx: float
+    sy: float
+    sz: float
+    travel: float
+    t: float
+    damping: float
+    mass: float
+    clearance: float
+    radius: float
+    length: float
+    rgba: tuple[float, ...]
+    drawer_rgba: tuple[float, ...]
+    handle_rgba: tuple[float, ...]
+    dx: float
+    hyd: float
+    hd: float
+
+    @property
+    def wall_hz(self) -> float:
+        """Half height of the drawer's walls: they stand on its floor, up to its top."""
+        return (self.hd - self.t) / 2
+
+    @property
+    def bar(self) -> tuple[float, float]:
+        """(x, z) of the handle bar's axis in the drawer's frame (its front face at -dx/2)."""
+        return -self.dx / 2 - self.clearance - self.radius, self.t + self.wall_hz
+
+
+@dataclass(frozen=True)
+class _DoorSpec:
+    """:func:`add_hinged_door`'s arguments once checked (m, rad, kg, N m s/rad), with the
+    panel's extents ``panel_w`` x ``panel_h`` derived from them."""
+
+    name: str
+    x: float
+    y: float
+    surface_z: float
+    w: float
+    h: float
+    d: float
+    t: float
+    hinge_side: str
+    angle: float
+    damping: float
+    mass: float
+    clearance: float
+    radius: float
+    inset: float
+    length: float
+    rgba: tuple[float, ...]
+    door_rgba: tuple[float, ...]
+    handle_rgba: tuple[float, ...]
+    panel_w: float
+    panel_h: float
+
+    @property
+    def side(self) -> float:
+        """+1 or -1: the door extends from its hinge along ``side * y``."""
+        return 1.0 if self.hinge_side == "right" else -1.0
+
+    @property
+    def axis(self) -> tuple[float, float, float]:
+        """The hinge axis: a positive turn swings the free edge towards -x."""
+        return (0.0, 0.0, self.side)
+
+    @property
+    def hinge_rel(self) -> tuple[float, float, float]:
+        """The hinge axis at mid-height in the carcass's frame: a gap in front of its face."""
+        return (-self.d / 2 - PART_GAP, -self.side * self.w / 2, self.h / 2)
+
+    @property
+    def bar(self) -> tuple[float, float, float]:
+        """The handle bar's centre in the door's frame (the panel's front face at -t)."""
+        s, g = self.side, PART_GAP
+        return (-self.t - self.clearance - self.radius, s * (self.w - g - self.inset), 0.0)
+
+
+def _add_drawer_part(carcass: mjcf.Element, spec: _DrawerSpec) -> tuple[str, ...]:
+    """The drawer body on its slide joint, its floor and walls and its handle, in the
+    carcass; returns the names of the drawer's box geoms."""
+    name, t, dx = spec.name, spec.t, spec.dx
+    drawer = carcass.add(
+        "body", name=f"{name}_drawer", pos=(-spec.sx / 2 + dx / 2, 0, t + PART_GAP)
+    )
+    drawer.add(
+        "joint",
+        name=f"{name}_slide",
+        type="slide",
+        axis=(-1, 0, 0),  # qpos = opening, positive towards the robot
+        range=(0.0, spec.travel),
+        limited=True,
+        damping=spec.damping,
+        solreflimit=LIMIT_SOLREF,
+    )
+    boxes = _drawer_boxes(spec)
+    bar_x, bar_z = spec.bar
+    handle = _handle_shapes(name, (bar_x, 0.0, bar_z), -dx / 2, spec.length, spec.radius, "y")
+    _add_moving_geoms(drawer, boxes, handle, spec.mass, spec.drawer_rgba, spec.handle_rgba)
+    return tuple(boxes)
+
+
+def _drawer_boxes(spec: _DrawerSpec) -> dict[str, tuple[tuple, tuple]]:
+    """The drawer's floor and four walls as {geom name: (half extents, pos)}."""
+    name, t, dx, hyd, wall_hz = spec.name, spec.t, spec.dx, spec.hyd, spec.wall_hz
+    return {
+        f"{name}_drawer_floor": ((dx / 2, hyd, t / 2), (0, 0, t / 2)),
+        f"{name}_drawer_front": ((t / 2, hyd, wall_hz), (-dx / 2 + t / 2, 0, t + wall_hz)),
+        f"{name}_drawer_back": ((t / 2, hyd, wall_hz), (dx / 2 - t / 2, 0, t + wall_hz)),
+        f"{name}_drawer_yneg": ((dx / 2 - t, t / 2, wall_hz), (0, -(hyd - t / 2), t + wall_hz)),
+        f"{name}_drawer_ypos": ((dx / 2 - t, t / 2, wall_hz), (0, hyd - t / 2, t + wall_hz)),
+    }
+
+
+def _describe_drawer(
+    spec: _DrawerSpec, carcass_geoms: tuple[str, ...], drawer_geoms: tuple[str, ...]
+) -> Drawer:
+    """The built drawer's names and its world-frame numbers at closed."""
+    name, x, y, t, g = spec.name, spec.x, spec.y, spec.t, PART_GAP
+    floor_z = spec.surface_z + 2 * t + g
+    cx = x - spec.sx / 2 + spec.dx / 2
+    bar_x, bar_z = spec.bar
+    return Drawer(
+        name=name,
+        joint=f"{name}_slide",
+        carcass_body=name,
+        drawer_body=f"{name}_drawer",
+        handle_geom=f"{name}_handle",
+        handle_post_geoms=(f"{name}_handle_post0", f"{name}_handle_post1"),
+        carcass_geoms=carcass_geoms,
+        drawer_geoms=drawer_geoms,  # type: ignore[arg-type]
+        travel=spec.travel,
+        handle_closed=(cx + bar_x, y, spec.surface_z + t + g + bar_z),
+        front_x=x - spec.sx / 2,
+        floor_centre=(cx, y, floor_z),
+        inner_half=(spec.dx / 2 - t, spec.hyd - t),
+        floor_z=floor_z,
+        rim_z=spec.surface_z + t + g + spec.hd,
+    )
+
+
+def _add_door_part(arena: mjcf.RootElement, carcass: mjcf.Element, spec: _DoorSpec) -> None:
+    """The door body on its hinge, its panel and its handle, in the carcass."""
+    name, t, s = spec.name, spec.t, spec.side
+    door = carcass.add("body", name=f"{name}_door", pos=spec.hinge_rel)
+    door.add(
+        "joint",
+        name=f"{name}_hinge",
+        type="hinge",
+        axis=spec.axis,
+        range=(0.0, spec.angle * _angle_unit(arena)),
+        limited=True,
+        damping=spec.damping,
+        solreflimit=LIMIT_SOLREF,
+    )
+    panel_half = (t / 2, spec.panel_w / 2, spec.panel_h / 2)
+    panel = {f"{name}_door_panel": (panel_half, (-t / 2, s * spec.w / 2, 0.0))}
+    handle = _handle_shapes(name, spec.bar, -t, spec.length, spec.radius, "z")
+    _add_moving_geoms(door, panel, handle, spec.mass, spec.door_rgba, spec.handle_rgba)
+
+
+def _angle_unit(arena: mjcf.RootElement) -> float:
+    """The arena's angle unit per radian, set to radians where unset: MJCF's default unit
+    is degrees, the Panda's radians, and a scene must compile alike with or without it."""
+    if arena.compiler.angle is None:
+        arena.compiler.angle = "radian"
+    return 1.0 if arena.compiler.angle == "radian" else 180.0 / math.pi
+
+
+def _describe_door(spec: _DoorSpec, carcass_geoms: tuple[str, ...]) -> HingedDoor:
+    """The built door's names and its world-frame numbers at closed."""
+    name, rel, bar = spec.name, spec.hinge_rel, spec.bar
+    hx, hy, hz = spec.x + rel[0], spec.y + rel[1], spec.surface_z + rel[2]
+    return HingedDoor(
+        name=name,
+        joint=f"{name}_hinge",
+        carcass_body=name,
+        door_body=f"{name}_door",
+        panel_geom=f"{name}_door_panel",
+        handle_geom=f"{name}_handle",
+        handle_post_geoms=(f"{name}_handle_post0", f"{name}_handle_post1"),
+        carcass_geoms=carcass_geoms,
+        hinge_side=spec.hinge_side,
+        max_angle=spec.angle,
+        hinge_xyz=(hx, hy, hz),
+        hinge_axis=spec.axis,
+        handle_closed=(hx + bar[0], hy + bar[1], hz),
+        front_x=spec.x - spec.d / 2,
+    )
+
+
+def _add_moving_geoms(
+    body: mjcf.Element,
+    boxes: dict[str, tuple[tuple, tuple]],
+    handle: list[tuple],
+    mass: float,
+    rgba: tuple[float, ...],
+    handle_rgba: tuple[float, ...],
+) -> None:
+    """A moving part's boxes ({name: (half extents, pos)}) and its handle, sharing ``mass``."""
+    masses = _split_mass(mass, [half for half, _ in boxes.values()], handle)
+    for (geom, (half, pos)), m in zip(boxes.items(), masses[: len(boxes)], strict=True):
+        body.add("geom", name=geom, size=half, pos=pos, mass=m, **_geom_kw(rgba))
+    _add_handle(body, handle, masses[len(boxes) :], handle_rgba)
+
+
 # -- geometry -----------------------------------------------------------------------------
 
 
@@ -612,6 +691,125 @@ def _add_handle(body, shapes: list[tuple], masses: list[float], rgba) -> None:
 
 
 # -- argument checks: a ValueError that names the argument and the value --------------------
+
+
+def _drawer_spec(
+    name: str,
+    position: tuple[float, float, float],
+    size: Sequence[float],
+    travel: float,
+    wall_thickness: float,
+    damping: float,
+    mass: float,
+    handle: tuple[float | None, float, float],
+    colours: tuple[Sequence[float], Sequence[float], Sequence[float]],
+) -> _DrawerSpec:
+    """:func:`add_drawer`'s arguments, checked one by one (the first bad one is named)
+    before anything is added to the arena. ``handle`` is (length, clearance, radius),
+    ``colours`` (carcass, drawer, handle)."""
+    fn = "add_drawer"
+    _check_name(fn, name)
+    x, y, surface_z = _position(fn, *position)
+    sx, sy, sz = _triple(fn, "size", size)
+    travel = _positive(fn, "travel", travel)
+    t = _positive(fn, "wall_thickness", wall_thickness)
+    damping = _non_negative(fn, "damping", damping, "N s/m")
+    mass = _positive(fn, "mass", mass, "kg")
+    handle_length, handle_clearance, handle_radius = handle
+    c = _positive(fn, "handle_clearance", handle_clearance)
+    r = _positive(fn, "handle_radius", handle_radius)
+    rgba, drawer_rgba, handle_rgba = (_rgba(fn, v) for v in colours)
+    g = PART_GAP
+    dx, hyd, hd = sx - t - g, sy / 2 - t - g, sz - 2 * t - 2 * g  # drawer's outer extents
+    if dx <= 2 * t or hyd <= t or hd <= t:
+        raise ValueError(
+            f"{fn}: size {tuple(size)!r} leaves no inside for a drawer with walls "
+            f"{wall_thickness!r} thick (a {PART_GAP} m gap around it)"
+        )
+    if travel > dx:
+        raise ValueError(
+            f"{fn}: travel ({travel!r}) exceeds the drawer's depth ({dx!r} m = size[0] - "
+            "wall_thickness - PART_GAP): the drawer would leave the carcass"
+        )
+    if 2 * r > hd - t or 4 * r > 2 * hyd:
+        raise ValueError(
+            f"{fn}: handle_radius ({handle_radius!r}) is too large for a front panel "
+            f"{hd - t!r} m high and {2 * hyd!r} m wide"
+        )
+    length = _bar_length(fn, handle_length, 2 * hyd, r, "the drawer's width")
+    return _DrawerSpec(
+        name, x, y, surface_z, sx, sy, sz, travel, t, damping, mass, c, r, length,
+        rgba, drawer_rgba, handle_rgba, dx, hyd, hd,
+    )  # fmt: skip
+
+
+def _door_spec(
+    name: str,
+    position: tuple[float, float, float],
+    shape: tuple[float, float, float, float],
+    hinge_side: str,
+    max_angle: float,
+    damping: float,
+    mass: float,
+    handle: tuple[float | None, float, float, float],
+    colours: tuple[Sequence[float], Sequence[float], Sequence[float]],
+) -> _DoorSpec:
+    """:func:`add_hinged_door`'s arguments, checked one by one (the first bad one is
+    named) before anything is added to the arena. ``shape`` is (width, height, depth,
+    wall_thickness), ``handle`` (length, clearance, radius, inset), ``colours`` (carcass,
+    door, handle)."""
+    fn = "add_hinged_door"
+    _check_name(fn, name)
+    x, y, surface_z = _position(fn, *position)
+    width, height, depth, wall_thickness = shape
+    w = _positive(fn, "width", width)
+    h = _positive(fn, "height", height)
+    if hinge_side not in ("left", "right"):
+        raise ValueError(f"{fn}: hinge_side must be 'left' or 'right', got {hinge_side!r}")
+    d = _positive(fn, "depth", depth)
+    angle = _positive(fn, "max_angle", max_angle, "rad")
+    if angle > math.pi:
+        raise ValueError(f"{fn}: max_angle must be at most pi (rad), got {max_angle!r}")
+    t = _positive(fn, "wall_thickness", wall_thickness)
+    damping = _non_negative(fn, "damping", damping, "N m s/rad")
+    mass = _positive(fn, "mass", mass, "kg")
+    handle_length, handle_clearance, handle_radius, handle_inset = handle
+    c = _positive(fn, "handle_clearance", handle_clearance)
+    r = _positive(fn, "handle_radius", handle_radius)
+    inset = _positive(fn, "handle_inset", handle_inset)
+    rgba, door_rgba, handle_rgba = (_rgba(fn, v) for v in colours)
+    if d <= t or w <= 2 * t or h <= 2 * t:
+        raise ValueError(
+            f"{fn}: depth {depth!r}, width {width!r} and height {height!r} leave no inside "
+            f"for a cabinet with walls {wall_thickness!r} thick"
+        )
+    g = PART_GAP
+    panel_w, panel_h = w - 2 * g, h - 2 * g
+    if inset < r or inset > panel_w / 2:
+        raise ValueError(
+            f"{fn}: handle_inset ({handle_inset!r}) must be between handle_radius ({r!r}) "
+            f"and half the door's width ({panel_w / 2!r})"
+        )
+    length = _bar_length(fn, handle_length, panel_h, r, "the door's height")
+    return _DoorSpec(
+        name, x, y, surface_z, w, h, d, t, hinge_side, angle, damping, mass, c, r, inset,
+        length, rgba, door_rgba, handle_rgba, panel_w, panel_h,
+    )  # fmt: skip
+
+
+def _bar_length(
+    fn: str, handle_length: float | None, room: float, r: float, room_name: str
+) -> float:
+    """The handle bar's length: ``handle_length``, or :data:`HANDLE_LENGTH` cut to the
+    ``room`` the part has for it; at least 4 radii (the caps and the posts need them)."""
+    length = min(HANDLE_LENGTH, room) if handle_length is None else handle_length
+    length = _positive(fn, "handle_length", length)
+    if length > room or length < 4 * r:
+        raise ValueError(
+            f"{fn}: handle_length ({length!r}) must be between 4 handle radii "
+            f"({4 * r!r}) and {room_name} ({room!r})"
+        )
+    return length
 
 
 def _finite(fn: str, label: str, value: object, unit: str = "m") -> float:
