@@ -55,6 +55,9 @@ from mj_envs.parts.button import add_latching_button
 from mj_envs.scene import OBJECT_CONAFFINITY, OBJECT_CONTYPE, make_arena, to_xml
 from mj_envs.world import DOMAIN_USERDATA_START
 
+STEEL_RGBA = (0.75, 0.76, 0.8, 1)
+GRIP_RGBA = (0.15, 0.12, 0.1, 1)  # the handle, its ridges and the knob
+
 
 def sample_layout(rng: np.random.Generator, train: bool) -> TaskLayout:
     """The pot turned up to +-120 deg, the plate with its switch, 1-2 (train) or 2-3 (eval) cups."""
@@ -113,13 +116,26 @@ def _sample_cups(rng: np.random.Generator, n: int, pot_xy: np.ndarray) -> list[t
 
 
 def _add_pot(arena, xy: np.ndarray, rotation: float) -> None:
+    """The pot, a free body turned by ``rotation`` about z: its shell on four feet, the
+    handle the robot grasps, the knob it twists and the spout it pours from."""
     half = rotation / 2
     pot = arena.worldbody.add(
         "body", name="pot", pos=(xy[0], xy[1], 0.0005), quat=(np.cos(half), 0, 0, np.sin(half))
     )
     pot.add("freejoint", name="pot_joint")
-    solid = {"contype": OBJECT_CONTYPE, "conaffinity": OBJECT_CONAFFINITY}
-    steel = (0.75, 0.76, 0.8, 1)
+    _add_pot_shell(pot)
+    _add_pot_handle(pot)
+    _add_pot_knob(pot)
+    _add_pot_spout(pot)
+
+
+def _solid() -> dict[str, int]:
+    """Collision attributes of a geom objects and the robot collide with."""
+    return {"contype": OBJECT_CONTYPE, "conaffinity": OBJECT_CONAFFINITY}
+
+
+def _add_pot_shell(pot) -> None:
+    """The pot's body, standing on four spherical feet, and its lid (looks only)."""
     body_bottom = 2 * FOOT_RADIUS + 0.001
     pot.add(
         "geom",
@@ -128,8 +144,8 @@ def _add_pot(arena, xy: np.ndarray, rotation: float) -> None:
         size=(POT_RADIUS, (POT_HEIGHT - body_bottom) / 2),
         pos=(0, 0, (POT_HEIGHT + body_bottom) / 2),
         mass=POT_MASSES["body"],
-        rgba=steel,
-        **solid,
+        rgba=STEEL_RGBA,
+        **_solid(),
     )
     pot.add(
         "geom",
@@ -153,8 +169,13 @@ def _add_pot(arena, xy: np.ndarray, rotation: float) -> None:
             mass=POT_MASSES["foot"],
             rgba=(0.2, 0.2, 0.2, 1),
             friction=(0.5, 0.005, 0.0001),
-            **solid,
+            **_solid(),
         )
+
+
+def _add_pot_handle(pot) -> None:
+    """The handle bar along -x, with ridges either side of the grip that keep the finger
+    pads from sliding along the bar."""
     pot.add(
         "geom",
         name="pot_handle",
@@ -162,13 +183,13 @@ def _add_pot(arena, xy: np.ndarray, rotation: float) -> None:
         size=(HANDLE_LENGTH / 2, HANDLE_HALF_WIDTH, HANDLE_HALF_HEIGHT),
         pos=(-(HANDLE_INNER + HANDLE_LENGTH / 2), 0, HANDLE_Z),
         mass=POT_MASSES["handle"],
-        rgba=(0.15, 0.12, 0.1, 1),
+        rgba=GRIP_RGBA,
         friction=(1.0, 0.02, 0.001),
         condim=4,
-        **solid,
+        **_solid(),
     )
     for i, (dx, side) in enumerate(((-1, -1), (-1, 1), (1, -1), (1, 1))):
-        pot.add(  # finger slot: ridges that keep the pads from sliding along the bar
+        pot.add(
             "geom",
             name=f"pot_ridge{i}",
             type="box",
@@ -179,9 +200,13 @@ def _add_pot(arena, xy: np.ndarray, rotation: float) -> None:
                 HANDLE_Z,
             ),
             mass=0.0005,
-            rgba=(0.15, 0.12, 0.1, 1),
-            **solid,
+            rgba=GRIP_RGBA,
+            **_solid(),
         )
+
+
+def _add_pot_knob(pot) -> None:
+    """The knob on the lid, a box the robot grasps to twist the pot."""
     pot.add(
         "geom",
         name="pot_knob",
@@ -189,11 +214,15 @@ def _add_pot(arena, xy: np.ndarray, rotation: float) -> None:
         size=(KNOB_HALF, KNOB_HALF, KNOB_HALF_HEIGHT),
         pos=(0, 0, KNOB_Z),
         mass=POT_MASSES["knob"],
-        rgba=(0.15, 0.12, 0.1, 1),
+        rgba=GRIP_RGBA,
         friction=(1.0, 0.02, 0.001),
         condim=4,
-        **solid,
+        **_solid(),
     )
+
+
+def _add_pot_spout(pot) -> None:
+    """The spout at +x (looks only: pouring is computed from ``SPOUT_TIP``)."""
     pot.add(
         "geom",
         name="pot_spout",
@@ -202,14 +231,13 @@ def _add_pot(arena, xy: np.ndarray, rotation: float) -> None:
         pos=(POT_RADIUS + 0.01, 0, SPOUT_TIP[2] - 0.004),
         euler=(0, -0.5, 0),
         mass=0.0,
-        rgba=steel,
+        rgba=STEEL_RGBA,
         contype=0,
         conaffinity=0,
     )
 
 
 def _add_plate(arena, xy: np.ndarray) -> None:
-    solid = {"contype": OBJECT_CONTYPE, "conaffinity": OBJECT_CONAFFINITY}
     plate = arena.worldbody.add("body", name="plate", pos=(xy[0], xy[1], 0.0))
     plate.add(
         "geom",
@@ -219,7 +247,7 @@ def _add_plate(arena, xy: np.ndarray) -> None:
         pos=(0, 0, PLATE_TOP / 2),
         rgba=(0.12, 0.12, 0.14, 1),
         friction=(0.8, 0.005, 0.0001),
-        **solid,
+        **_solid(),
     )
     plate.add(
         "geom",
