@@ -418,11 +418,19 @@ def _add_solid_walls(wb, plan: FloorPlan) -> None:
 
 
 def _add_door(arena, k: int, door: DoorSpec) -> None:
-    wb = arena.worldbody
-    u = (math.cos(door.theta), math.sin(door.theta))
+    """Doorway ``k``: its sliding leaf, latched shut, and the turning handle beside it on
+    the wall top (both in the door frame, whose x axis is the wall's direction u)."""
     quat = (math.cos(door.theta / 2), 0, 0, math.sin(door.theta / 2))  # door frame: x = u
+    _add_leaf(arena, k, door, quat)
+    _add_door_handle(arena.worldbody, k, door, quat)
+
+
+def _add_leaf(arena, k: int, door: DoorSpec, quat: tuple[float, ...]) -> None:
+    """The leaf on a slide joint whose spring pulls it open along -u (into the wall), and
+    the joint equality that holds it shut until the environment releases it (the handle
+    turned to the door's angle)."""
     half_h = (WALL_TOP - 0.01 - FLOOR_Z) / 2
-    leaf = wb.add(
+    leaf = arena.worldbody.add(
         "body", name=f"door{k}_leaf", pos=(door.x, door.y, FLOOR_Z + half_h + 0.005), quat=quat
     )
     leaf.add(
@@ -454,6 +462,12 @@ def _add_door(arena, k: int, door: DoorSpec) -> None:
         active=True,
         solref=(0.01, 1),
     )
+
+
+def _add_door_handle(wb, k: int, door: DoorSpec, quat: tuple[float, ...]) -> None:
+    """A post on the wall top ``KNOB_ALONG`` along u from the doorway's centre, and on it
+    the handle: a wing on a hinge whose friction is the door's."""
+    u = (math.cos(door.theta), math.sin(door.theta))
     kx, ky = door.x + KNOB_ALONG * u[0], door.y + KNOB_ALONG * u[1]
     post = wb.add("body", name=f"door{k}_post", pos=(kx, ky, WALL_TOP), quat=quat)
     stem_top = KNOB_Z - WING_HALF[2] - WALL_TOP
@@ -478,6 +492,11 @@ def _add_door(arena, k: int, door: DoorSpec) -> None:
         damping=HANDLE_DAMPING,
         armature=0.002,
     )
+    _add_wing(handle, k)
+
+
+def _add_wing(handle, k: int) -> None:
+    """The wing the robot turns, and a red pointer on it that shows its angle."""
     handle.add(
         "geom",
         name=f"door{k}_wing",
