@@ -24,6 +24,7 @@ from bpns.env.scene import Anchor, SceneTrack, anchors_by_name
 from bpns.errors import BpnsError
 from bpns.structs import GroundAtom, Object, Predicate, SimState, State, Task, Type
 from ik import ControllerConfig
+from mj_envs.contacts import Contacts
 from mj_envs.perturbation import noise
 from mj_envs.render import render_states
 from mj_envs.scene_geometry import scene_track
@@ -365,15 +366,6 @@ class MujocoEnv(abc.ABC):
     # -- helpers for domains ----------------------------------------------------------
     @staticmethod
     def contact_pairs(world: World) -> set[tuple[int, int]]:
-        """Unordered geom-id pairs currently in contact (distance <= 0)."""
-        d = world.data
-        n = d.ncon
-        if n == 0:
-            return set()
-        geoms = d.contact.geom[:n]
-        dist = d.contact.dist[:n]
-        return {
-            (int(min(a, b)), int(max(a, b)))
-            for (a, b), x in zip(geoms, dist, strict=True)
-            if x <= 0.0
-        }
+        """Unordered geom-id pairs currently in contact (distance <= 0), as a set: the
+        pairs :meth:`mj_envs.contacts.Contacts.read` reads (one reading of MuJoCo's list)."""
+        return set(Contacts.read(world.data).pairs)
