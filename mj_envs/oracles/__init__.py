@@ -1,1 +1,2 @@
-"""What scripted demonstrators and oracle skills share: the phase runner and motion primitives."""
+"""What scripted demonstrators and oracle skills share: the phase runner, motion primitives
+and the helpers that write STRIPS operators."""

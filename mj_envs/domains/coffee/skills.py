@@ -28,7 +28,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.structs import LiftedAtom, NoSubgoal, Object, Skill, State, STRIPSOperator, Variable
+from bpns.structs import NoSubgoal, Object, Skill, State, Variable
 from mj_envs.domains.coffee.behaviours import (
     APPROACH_CLEARANCE,
     FREE_Z,
@@ -79,6 +79,7 @@ from mj_envs.domains.coffee.rules import (
     WRIST_LIMITS,
     pot_above_cup,
 )
+from mj_envs.oracles.operators import atom, make_operator
 
 # Scope vector layout: the robot's features come first in every operator, the pot next.
 R_WRIST, R_TILT = 4, 3
@@ -105,67 +106,59 @@ _R, _P = Variable("?robot", ROBOT), Variable("?pot", POT)
 _L, _C, _O = Variable("?plate", PLATE), Variable("?cup", CUP), Variable("?other", CUP)
 
 
-def _op(name: str, params: tuple, pre: set, add: set, delete: set) -> STRIPSOperator:
-    return STRIPSOperator(name, params, frozenset(pre), frozenset(add), frozenset(delete))
-
-
-def _a(pred, *args) -> LiftedAtom:
-    return LiftedAtom(pred, tuple(args))
-
-
-TWIST = _op(
+TWIST = make_operator(
     "Twist",
     (_R, _P),
-    {_a(HAND_EMPTY, _R), _a(ON_TABLE, _P)},
-    {_a(TWISTING, _R, _P)},
-    {_a(HAND_EMPTY, _R)},
+    {atom(HAND_EMPTY, _R), atom(ON_TABLE, _P)},
+    {atom(TWISTING, _R, _P)},
+    {atom(HAND_EMPTY, _R)},
 )
-PICK_POT_AFTER_TWIST = _op(
+PICK_POT_AFTER_TWIST = make_operator(
     "PickPotAfterTwist",
     (_R, _P),
-    {_a(TWISTING, _R, _P), _a(ON_TABLE, _P)},
-    {_a(HOLDING, _R, _P)},
-    {_a(TWISTING, _R, _P)},
+    {atom(TWISTING, _R, _P), atom(ON_TABLE, _P)},
+    {atom(HOLDING, _R, _P)},
+    {atom(TWISTING, _R, _P)},
 )
-PICK_POT = _op(
+PICK_POT = make_operator(
     "PickPot",
     (_R, _P),
-    {_a(HAND_EMPTY, _R)},
-    {_a(HOLDING, _R, _P)},
-    {_a(HAND_EMPTY, _R)},
+    {atom(HAND_EMPTY, _R)},
+    {atom(HOLDING, _R, _P)},
+    {atom(HAND_EMPTY, _R)},
 )
-PLACE_POT_ON_PLATE = _op(
+PLACE_POT_ON_PLATE = make_operator(
     "PlacePotOnPlate",
     (_R, _P, _L),
-    {_a(HOLDING, _R, _P)},
-    {_a(POT_ON_PLATE, _P, _L), _a(HAND_EMPTY, _R)},
-    {_a(HOLDING, _R, _P), _a(ON_TABLE, _P)},
+    {atom(HOLDING, _R, _P)},
+    {atom(POT_ON_PLATE, _P, _L), atom(HAND_EMPTY, _R)},
+    {atom(HOLDING, _R, _P), atom(ON_TABLE, _P)},
 )
-TURN_ON_PLATE = _op(
+TURN_ON_PLATE = make_operator(
     "TurnOnPlate",
     (_R, _P, _L),
-    {_a(HAND_EMPTY, _R), _a(POT_ON_PLATE, _P, _L)},
-    {_a(BUTTON_PRESSED, _L), _a(POT_HOT, _P)},
+    {atom(HAND_EMPTY, _R), atom(POT_ON_PLATE, _P, _L)},
+    {atom(BUTTON_PRESSED, _L), atom(POT_HOT, _P)},
     set(),
 )
-POUR_FROM_NOTHING = _op(
+POUR_FROM_NOTHING = make_operator(
     "PourFromNothing",
     (_R, _P, _L, _C),
-    {_a(HOLDING, _R, _P), _a(POT_HOT, _P), _a(NOT_ABOVE_CUP, _R, _P)},
-    {_a(CUP_FILLED, _C), _a(POT_ABOVE_CUP, _P, _C), _a(ROBOT_ABOVE_CUP, _R, _C)},
-    {_a(NOT_ABOVE_CUP, _R, _P), _a(POT_ON_PLATE, _P, _L), _a(ON_TABLE, _P)},
+    {atom(HOLDING, _R, _P), atom(POT_HOT, _P), atom(NOT_ABOVE_CUP, _R, _P)},
+    {atom(CUP_FILLED, _C), atom(POT_ABOVE_CUP, _P, _C), atom(ROBOT_ABOVE_CUP, _R, _C)},
+    {atom(NOT_ABOVE_CUP, _R, _P), atom(POT_ON_PLATE, _P, _L), atom(ON_TABLE, _P)},
 )
-POUR_FROM_OTHER_CUP = _op(
+POUR_FROM_OTHER_CUP = make_operator(
     "PourFromOtherCup",
     (_R, _P, _C, _O),
     {
-        _a(HOLDING, _R, _P),
-        _a(POT_HOT, _P),
-        _a(POT_ABOVE_CUP, _P, _O),
-        _a(ROBOT_ABOVE_CUP, _R, _O),
+        atom(HOLDING, _R, _P),
+        atom(POT_HOT, _P),
+        atom(POT_ABOVE_CUP, _P, _O),
+        atom(ROBOT_ABOVE_CUP, _R, _O),
     },
-    {_a(CUP_FILLED, _C), _a(POT_ABOVE_CUP, _P, _C), _a(ROBOT_ABOVE_CUP, _R, _C)},
-    {_a(POT_ABOVE_CUP, _P, _O), _a(ROBOT_ABOVE_CUP, _R, _O)},
+    {atom(CUP_FILLED, _C), atom(POT_ABOVE_CUP, _P, _C), atom(ROBOT_ABOVE_CUP, _R, _C)},
+    {atom(POT_ABOVE_CUP, _P, _O), atom(ROBOT_ABOVE_CUP, _R, _O)},
 )
 
 

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.structs import LiftedAtom, Object, Skill, State, STRIPSOperator, Variable
+from bpns.structs import Object, Skill, State, Variable
 from mj_envs.domains.cover.behaviours import (
     PAD_CLEARANCE,
     pick_action,
@@ -29,23 +29,22 @@ from mj_envs.domains.cover.rules import (
     ROBOT,
     TARGET,
 )
+from mj_envs.oracles.operators import atom, make_operator
 
 _R, _B, _T = Variable("?robot", ROBOT), Variable("?block", BLOCK), Variable("?target", TARGET)
-PICK = STRIPSOperator(
+PICK = make_operator(
     "Pick",
     (_R, _B),
-    frozenset({LiftedAtom(HAND_EMPTY, (_R,)), LiftedAtom(IS_BLOCK, (_B,))}),
-    frozenset({LiftedAtom(HOLDING, (_B,))}),
-    frozenset({LiftedAtom(HAND_EMPTY, (_R,))}),
+    {atom(HAND_EMPTY, _R), atom(IS_BLOCK, _B)},
+    {atom(HOLDING, _B)},
+    {atom(HAND_EMPTY, _R)},
 )
-PLACE = STRIPSOperator(
+PLACE = make_operator(
     "Place",
     (_R, _B, _T),
-    frozenset(
-        {LiftedAtom(HOLDING, (_B,)), LiftedAtom(IS_BLOCK, (_B,)), LiftedAtom(IS_TARGET, (_T,))}
-    ),
-    frozenset({LiftedAtom(HAND_EMPTY, (_R,)), LiftedAtom(COVERS, (_B, _T))}),
-    frozenset({LiftedAtom(HOLDING, (_B,))}),
+    {atom(HOLDING, _B), atom(IS_BLOCK, _B), atom(IS_TARGET, _T)},
+    {atom(HAND_EMPTY, _R), atom(COVERS, _B, _T)},
+    {atom(HOLDING, _B)},
 )
 
 

@@ -23,7 +23,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.structs import GivenSkill, LiftedAtom, Object, Skill, State, STRIPSOperator, Variable
+from bpns.structs import GivenSkill, Object, Skill, State, Variable
 from mj_envs.domains.doors.motion import BasePlanner, NoPathFound, path_seed, scene_boxes
 from mj_envs.domains.doors.rules import (
     APPROACH_ALONG,
@@ -46,6 +46,7 @@ from mj_envs.domains.doors.rules import (
     required_angle,
 )
 from mj_envs.oracles.motions import GAIN
+from mj_envs.oracles.operators import atom, make_operator
 from mj_envs.robots.mobile_panda import to_base_frame
 
 CARRY = np.array([0.45, 0.0, 0.35])  # hand in the base frame while driving
@@ -289,52 +290,44 @@ _D, _F = Variable("?door", DOOR), Variable("?from_door", DOOR)
 _RM, _TO = Variable("?room", ROOM), Variable("?to_room", ROOM)
 
 
-def _op(name, params, pre, add, delete) -> STRIPSOperator:
-    return STRIPSOperator(name, tuple(params), frozenset(pre), frozenset(add), frozenset(delete))
-
-
-def _a(pred, *vs) -> LiftedAtom:
-    return LiftedAtom(pred, tuple(vs))
-
-
-MOVE_TO_DOOR_FROM_MAIN_ROOM = _op(
+MOVE_TO_DOOR_FROM_MAIN_ROOM = make_operator(
     "MoveToDoorFromMainRoom",
     (_R, _D, _RM),
-    {_a(IN_MAIN_ROOM, _R, _RM), _a(DOOR_IN_ROOM, _D, _RM)},
-    {_a(IN_DOORWAY, _R, _D), _a(TOUCHING_DOOR, _R, _D)},
-    {_a(IN_MAIN_ROOM, _R, _RM)},
+    {atom(IN_MAIN_ROOM, _R, _RM), atom(DOOR_IN_ROOM, _D, _RM)},
+    {atom(IN_DOORWAY, _R, _D), atom(TOUCHING_DOOR, _R, _D)},
+    {atom(IN_MAIN_ROOM, _R, _RM)},
 )
-MOVE_TO_DOOR_FROM_DOORWAY = _op(
+MOVE_TO_DOOR_FROM_DOORWAY = make_operator(
     "MoveToDoorFromDoorway",
     (_R, _D, _F, _RM),
     {
-        _a(IN_DOORWAY, _R, _F),
-        _a(IN_ROOM, _R, _RM),
-        _a(DOOR_IN_ROOM, _D, _RM),
-        _a(DOORS_SHARE_ROOM, _F, _D),
+        atom(IN_DOORWAY, _R, _F),
+        atom(IN_ROOM, _R, _RM),
+        atom(DOOR_IN_ROOM, _D, _RM),
+        atom(DOORS_SHARE_ROOM, _F, _D),
     },
-    {_a(IN_DOORWAY, _R, _D), _a(TOUCHING_DOOR, _R, _D)},
-    {_a(IN_DOORWAY, _R, _F)},
+    {atom(IN_DOORWAY, _R, _D), atom(TOUCHING_DOOR, _R, _D)},
+    {atom(IN_DOORWAY, _R, _F)},
 )
-OPEN_DOOR = _op(
+OPEN_DOOR = make_operator(
     "OpenDoor",
     (_R, _D),
-    {_a(IN_DOORWAY, _R, _D), _a(TOUCHING_DOOR, _R, _D)},
-    {_a(DOOR_IS_OPEN, _D)},
-    {_a(TOUCHING_DOOR, _R, _D)},
+    {atom(IN_DOORWAY, _R, _D), atom(TOUCHING_DOOR, _R, _D)},
+    {atom(DOOR_IS_OPEN, _D)},
+    {atom(TOUCHING_DOOR, _R, _D)},
 )
-MOVE_THROUGH_DOOR = _op(
+MOVE_THROUGH_DOOR = make_operator(
     "MoveThroughDoor",
     (_R, _D, _RM, _TO),
     {
-        _a(IN_DOORWAY, _R, _D),
-        _a(DOOR_IS_OPEN, _D),
-        _a(IN_ROOM, _R, _RM),
-        _a(DOOR_IN_ROOM, _D, _RM),
-        _a(DOOR_IN_ROOM, _D, _TO),
+        atom(IN_DOORWAY, _R, _D),
+        atom(DOOR_IS_OPEN, _D),
+        atom(IN_ROOM, _R, _RM),
+        atom(DOOR_IN_ROOM, _D, _RM),
+        atom(DOOR_IN_ROOM, _D, _TO),
     },
-    {_a(IN_ROOM, _R, _TO)},
-    {_a(IN_ROOM, _R, _RM)},
+    {atom(IN_ROOM, _R, _TO)},
+    {atom(IN_ROOM, _R, _RM)},
 )
 
 
@@ -349,14 +342,14 @@ def oracle_skills() -> list[Skill]:
 
 
 # -- given skills (bpns.learning.given): what the motion planner provides -----------------------
-MOVE_TO_DOOR_SIGNATURE = _op(
-    "MoveToDoor", (_R, _D), set(), {_a(IN_DOORWAY, _R, _D), _a(TOUCHING_DOOR, _R, _D)}, set()
+MOVE_TO_DOOR_SIGNATURE = make_operator(
+    "MoveToDoor", (_R, _D), set(), {atom(IN_DOORWAY, _R, _D), atom(TOUCHING_DOOR, _R, _D)}, set()
 )
-MOVE_THROUGH_DOOR_SIGNATURE = _op(
+MOVE_THROUGH_DOOR_SIGNATURE = make_operator(
     "MoveThroughDoor",
     (_R, _D, _TO),
-    {_a(IN_DOORWAY, _R, _D), _a(DOOR_IS_OPEN, _D), _a(DOOR_IN_ROOM, _D, _TO)},
-    {_a(IN_ROOM, _R, _TO)},
+    {atom(IN_DOORWAY, _R, _D), atom(DOOR_IS_OPEN, _D), atom(DOOR_IN_ROOM, _D, _TO)},
+    {atom(IN_ROOM, _R, _TO)},
     set(),
 )
 

@@ -21,7 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bpns.structs import LiftedAtom, NoSubgoal, Object, Skill, State, STRIPSOperator, Variable
+from bpns.structs import NoSubgoal, Object, Skill, State, Variable
 from mj_envs.domains.stick_button.behaviours import (
     FINGER_REACH,
     GRASP_MAX,
@@ -50,6 +50,7 @@ from mj_envs.domains.stick_button.rules import (
     STICK_HEIGHT,
 )
 from mj_envs.oracles.motions import GAIN
+from mj_envs.oracles.operators import atom, make_operator
 
 APPROACH_CLEARANCE = 0.008  # pusher height above the cap before the slow push
 PRESS_SPEED = 0.003  # metres per step while pushing
@@ -64,52 +65,48 @@ _R, _S = Variable("?robot", ROBOT), Variable("?stick", STICK)
 _B, _F = Variable("?button", BUTTON), Variable("?from", BUTTON)
 
 
-def _op(name: str, params: tuple, pre: set, add: set, delete: set) -> STRIPSOperator:
-    return STRIPSOperator(name, params, frozenset(pre), frozenset(add), frozenset(delete))
-
-
-_NOTHING = LiftedAtom(ABOVE_NO_BUTTON, ())
-ROBOT_PRESS_FROM_NOTHING = _op(
+_NOTHING = atom(ABOVE_NO_BUTTON)
+ROBOT_PRESS_FROM_NOTHING = make_operator(
     "RobotPressButtonFromNothing",
     (_R, _B),
-    {_NOTHING, LiftedAtom(HAND_EMPTY, (_R,))},
-    {LiftedAtom(PRESSED, (_B,)), LiftedAtom(ROBOT_ABOVE_BUTTON, (_R, _B))},
+    {_NOTHING, atom(HAND_EMPTY, _R)},
+    {atom(PRESSED, _B), atom(ROBOT_ABOVE_BUTTON, _R, _B)},
     {_NOTHING},
 )
-ROBOT_PRESS_FROM_BUTTON = _op(
+ROBOT_PRESS_FROM_BUTTON = make_operator(
     "RobotPressButtonFromButton",
     (_R, _B, _F),
-    {LiftedAtom(ROBOT_ABOVE_BUTTON, (_R, _F)), LiftedAtom(HAND_EMPTY, (_R,))},
-    {LiftedAtom(PRESSED, (_B,)), LiftedAtom(ROBOT_ABOVE_BUTTON, (_R, _B))},
-    {LiftedAtom(ROBOT_ABOVE_BUTTON, (_R, _F))},
+    {atom(ROBOT_ABOVE_BUTTON, _R, _F), atom(HAND_EMPTY, _R)},
+    {atom(PRESSED, _B), atom(ROBOT_ABOVE_BUTTON, _R, _B)},
+    {atom(ROBOT_ABOVE_BUTTON, _R, _F)},
 )
-PICK_FROM_NOTHING = _op(
+PICK_FROM_NOTHING = make_operator(
     "PickStickFromNothing",
     (_R, _S),
-    {_NOTHING, LiftedAtom(HAND_EMPTY, (_R,))},
-    {LiftedAtom(GRASPED, (_R, _S))},
-    {LiftedAtom(HAND_EMPTY, (_R,))},
+    {_NOTHING, atom(HAND_EMPTY, _R)},
+    {atom(GRASPED, _R, _S)},
+    {atom(HAND_EMPTY, _R)},
 )
-PICK_FROM_BUTTON = _op(
+PICK_FROM_BUTTON = make_operator(
     "PickStickFromButton",
     (_R, _S, _F),
-    {LiftedAtom(ROBOT_ABOVE_BUTTON, (_R, _F)), LiftedAtom(HAND_EMPTY, (_R,))},
-    {LiftedAtom(GRASPED, (_R, _S)), _NOTHING},
-    {LiftedAtom(HAND_EMPTY, (_R,)), LiftedAtom(ROBOT_ABOVE_BUTTON, (_R, _F))},
+    {atom(ROBOT_ABOVE_BUTTON, _R, _F), atom(HAND_EMPTY, _R)},
+    {atom(GRASPED, _R, _S), _NOTHING},
+    {atom(HAND_EMPTY, _R), atom(ROBOT_ABOVE_BUTTON, _R, _F)},
 )
-STICK_PRESS_FROM_NOTHING = _op(
+STICK_PRESS_FROM_NOTHING = make_operator(
     "StickPressButtonFromNothing",
     (_R, _S, _B),
-    {_NOTHING, LiftedAtom(GRASPED, (_R, _S))},
-    {LiftedAtom(PRESSED, (_B,)), LiftedAtom(STICK_ABOVE_BUTTON, (_S, _B))},
+    {_NOTHING, atom(GRASPED, _R, _S)},
+    {atom(PRESSED, _B), atom(STICK_ABOVE_BUTTON, _S, _B)},
     {_NOTHING},
 )
-STICK_PRESS_FROM_BUTTON = _op(
+STICK_PRESS_FROM_BUTTON = make_operator(
     "StickPressButtonFromButton",
     (_R, _S, _B, _F),
-    {LiftedAtom(STICK_ABOVE_BUTTON, (_S, _F)), LiftedAtom(GRASPED, (_R, _S))},
-    {LiftedAtom(PRESSED, (_B,)), LiftedAtom(STICK_ABOVE_BUTTON, (_S, _B))},
-    {LiftedAtom(STICK_ABOVE_BUTTON, (_S, _F))},
+    {atom(STICK_ABOVE_BUTTON, _S, _F), atom(GRASPED, _R, _S)},
+    {atom(PRESSED, _B), atom(STICK_ABOVE_BUTTON, _S, _B)},
+    {atom(STICK_ABOVE_BUTTON, _S, _F)},
 )
 
 
