@@ -43,7 +43,8 @@ class PhasedDemonstrator(abc.ABC):
 
     Subclasses implement :meth:`plan` and :meth:`idle_action`, and may set
     ``max_phase_steps`` (default 150 actions, 7.5 s at the default 0.05 s control step)
-    to bound how long any one phase may run. Its state is the queue and the current
+    to bound how long any one phase may run, and override :meth:`phase_failed` to say
+    what a phase that runs longer failed to do. Its state is the queue and the current
     phase's step count: make a new demonstrator for each task (there is no reset).
     """
 
@@ -76,9 +77,10 @@ class PhasedDemonstrator(abc.ABC):
 
         Phases that return None are dropped in order (in this same state) until one
         returns an action; an empty queue is refilled by :meth:`plan`, and an empty plan
-        gives :meth:`idle_action`. Raises :class:`DemonstrationFailed` on the
-        ``max_phase_steps + 1``-th action of one phase (the counter restarts with each
-        phase), and lets any exception of a phase or of :meth:`plan` through.
+        gives :meth:`idle_action`. Raises :meth:`phase_failed`'s
+        :class:`DemonstrationFailed` on the ``max_phase_steps + 1``-th action of one phase
+        (the counter restarts with each phase), and lets any exception of a phase or of
+        :meth:`plan` through.
         """
         while True:
             if not self._phases:
@@ -89,7 +91,13 @@ class PhasedDemonstrator(abc.ABC):
             if action is not None:
                 self._phase_steps += 1
                 if self._phase_steps > self.max_phase_steps:
-                    raise DemonstrationFailed("a phase of the demonstration did not finish")
+                    raise self.phase_failed()
                 return action
             self._phases.pop(0)
             self._phase_steps = 0
+
+    def phase_failed(self) -> DemonstrationFailed:
+        """The error for a phase that ran past ``max_phase_steps``: by default it says just
+        that; a subclass that knows what the phase was for names it (the message is what
+        the demonstration run records as the attempt's failure)."""
+        return DemonstrationFailed("a phase of the demonstration did not finish")
