@@ -31,9 +31,10 @@ class DemosWritten:
     def lines(self) -> list[str]:
         noisy = f" (DART noise {self.noise:g})" if self.noise else ""
         where = f" in {self.worlds} worlds" if self.worlds != "nominal" else ""
+        tried = self.num_written + len(self.failed)
         out = [
             f"wrote {self.num_written} demonstrations of {self.env_name}{noisy}{where} to "
-            f"{self.path} in {self.seconds:.1f} s"
+            f"{self.path} in {self.seconds:.1f} s: {self.num_written}/{tried} tasks succeeded"
             + (f"; the demonstrator failed on tasks {list(self.failed)}" if self.failed else "")
         ]
         for index, why in zip(self.failed, self.why, strict=False):

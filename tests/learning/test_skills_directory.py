@@ -114,7 +114,11 @@ def test_no_subgoal_skills_round_trip(tmp_path):
     state = toy.make_state(1.0, [3.0, 7.5], [5.0, 9.0])
     goal = back.skills[0].sampler(state, (B0, R), np.random.default_rng(0))
     np.testing.assert_array_equal(goal, state.vec((B0, R)))
-    assert "no subgoals" in describe(back)
+    text = describe(back)
+    assert "no subgoals" in text
+    legend = text.split("What the annotations mean:\n")[1].splitlines()
+    assert any(line.split()[:2] == ["no", "subgoals"] for line in legend)
+    assert not any("starts with" in line for line in legend)  # not printed, not explained
 
 
 def test_describe_lists_every_operator(skills):
@@ -124,6 +128,8 @@ def test_describe_lists_every_operator(skills):
     assert "add: Covers(?block0, ?target0), HandEmpty(?robot0)" in text
     # the pick takes the block's place as given and names the range it was shown
     assert re.search(r"starts with: \?block0\.x in \[[-0-9.e]+, [-0-9.e]+\]", text)
+    legend = text.split("What the annotations mean:\n")[1]
+    assert [line.split()[0] for line in legend.splitlines()] == ["segments", "horizon", "starts"]
 
 
 def test_skills_saved_with_index_names_before_readable_names_still_load(skills, tmp_path):

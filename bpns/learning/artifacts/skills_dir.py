@@ -432,7 +432,26 @@ def describe(skills: LearnedSkills) -> str:
         lines.append(header)
         if isinstance(skill.sampler, LearnedSampler) and skill.sampler.novelty is not None:
             lines.append(_starts(skill))
+    used = [(mark, text) for mark, text in ANNOTATIONS if any(mark in line for line in lines)]
+    if used:
+        lines += ["", "What the annotations mean:"]
+        lines += [f"  {mark:<28}{text}" for mark, text in used]
     return "\n".join(lines)
+
+
+# Each annotation describe() may print and what it means, shown under the listing (only
+# those it printed): a new user met "sampler without classifier" with no way to tell.
+ANNOTATIONS = (
+    ("segments", "demonstration segments the operator was learned from"),
+    ("horizon", "steps its policy may run before the run counts as failed"),
+    ("given skill", "the environment's own policy and sampler; nothing learned"),
+    ("no subgoals", "its objects never changed: the subgoal is the current state"),
+    ("sampler without classifier", "no negative examples: every drawn subgoal is tried"),
+    (
+        "starts with",
+        "where the sampler samples (the starts shown, with a margin); it refuses elsewhere",
+    ),
+)
 
 
 def _starts(skill: Skill) -> str:
