@@ -55,6 +55,14 @@ GRASP_ABOVE_CENTRE = 0.006  # keeps the fingertips off whatever the cube stands 
 MAX_ATOM_STEPS = 300
 
 
+def oracle_skills() -> list[Skill]:
+    """Hand-written Pick and Stack: what ``--approach oracle`` plans with."""
+    return [
+        Skill(PICK, PickPolicy(), PickSampler()),
+        Skill(STACK, StackPolicy(), StackSampler()),
+    ]
+
+
 class StackEnv(MujocoEnv):
     """Stack cubes into the goal tower."""
 
@@ -63,11 +71,10 @@ class StackEnv(MujocoEnv):
     predicates = PREDICATES
     contact_predicates = PREDICATES
     goal_predicates = frozenset({ON})
-    # what it offers beyond the required members: its hand-written skills (defined below)
-    # and MuJoCo's perturbed physics (`bpns eval --perturb`)
-    capabilities = Capabilities(
-        oracle_skills=lambda: oracle_skills(), perturbed=perturbed, observe=observe
-    )
+    # what it offers beyond the required members: its hand-written skills (oracle_skills
+    # above, a module-level function; their operators and policies below) and MuJoCo's
+    # perturbed physics (`bpns eval --perturb`)
+    capabilities = Capabilities(oracle_skills=oracle_skills, perturbed=perturbed, observe=observe)
 
     def sample_layout(self, rng: np.random.Generator, train: bool) -> TaskLayout:
         arena = make_arena("stack")
@@ -104,14 +111,6 @@ class StackEnv(MujocoEnv):
 
     def demonstrator(self, task: Task, rng: np.random.Generator) -> StackDemonstrator:
         return StackDemonstrator(task)
-
-
-def oracle_skills() -> list[Skill]:
-    """Hand-written Pick and Stack: what ``--approach oracle`` plans with."""
-    return [
-        Skill(PICK, PickPolicy(), PickSampler()),
-        Skill(STACK, StackPolicy(), StackSampler()),
-    ]
 
 
 # -- behaviours shared by the demonstrator and the oracle skills ---------------------------
