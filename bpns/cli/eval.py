@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
+from collections.abc import Sequence
 
 from bpns.acting.config import MODES, ExecutionConfig
-from bpns.approaches import SkillSource, approach_names
+from bpns.approaches import ApproachEntry, SkillSource, approach_names
 from bpns.cli.common import (
     UserError,
     approach_by_name,
@@ -31,13 +32,15 @@ from bpns.cli.paths import (
     check_output_file,
     writing,
 )
-from bpns.env.environment import perturbed
+from bpns.env.environment import Environment, perturbed
 from bpns.env.perturbations import PerturbationError
 from bpns.env.worlds import ModelSpec, WorldDistribution, parse_model, parse_world
+from bpns.evaluation.evaluate import EvalReport
 from bpns.evaluation.reporting import explain_lines, solved_line
 from bpns.inspect.extras import require
 from bpns.inspect.html_report import PAGE
-from bpns.planning.config import planning_config_for
+from bpns.learning.pipeline import LearnedSkills
+from bpns.planning.config import PlanningConfig, planning_config_for
 from bpns.workflow.evaluate import EvalRequest, evaluate_approaches
 from bpns.workflow.inspect import RERUN_TASKS, record_evaluation, recording_name
 from bpns.workflow.report import report_evaluation
@@ -47,6 +50,18 @@ HELP = "solve held-out tasks by bilevel planning; results JSON + markdown table"
 
 
 def configure(p: argparse.ArgumentParser) -> None:
+    """The flags by concern; the order of the calls is the order ``--help`` lists them."""
+    _add_task_arguments(p)
+    _add_planning_arguments(p)
+    _add_output_arguments(p)
+    add_world_arguments(p)
+    _add_diagnosis_arguments(p)
+    _add_report_arguments(p)
+
+
+def _add_task_arguments(p: argparse.ArgumentParser) -> None:
+    """What is evaluated: the environment, the skills, the approaches and the task
+    stream (``--seed``) with the planner's own seed."""
     p.add_argument("--env", help="environment (default: the one recorded in --skills)")
     p.add_argument("--skills", type=path_arg, help="skills directory (for learned approaches)")
     p.add_argument(
@@ -60,6 +75,11 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=nonnegative, default=0, help="seed of the eval task stream")
     p.add_argument("--planner-seed", type=nonnegative, default=0, help="seed of subgoal sampling")
     p.add_argument("--train", action="store_true", help="evaluate on train tasks instead")
+
+
+def _add_planning_arguments(p: argparse.ArgumentParser) -> None:
+    """The planner's budget and refinement settings; unset ones fall back to the
+    environment's (``planning_config_for``)."""
     p.add_argument(
         "--timeout",
         type=positive_float,
@@ -92,6 +112,11 @@ def configure(p: argparse.ArgumentParser) -> None:
         "Coffee's spilled coffee) until its horizon, as the paper's planner does "
         "(default: it fails there at once)",
     )
+
+
+def _add_output_arguments(p: argparse.ArgumentParser) -> None:
+    """Where results go (``--out``, with the ``--workers`` that produce them) and the
+    ``--video`` of one task."""
     p.add_argument("--out", type=path_arg, help="output directory (results.json, results.md)")
     p.add_argument("--workers", type=positive, default=default_workers())
     p.add_argument(
@@ -111,7 +136,10 @@ def configure(p: argparse.ArgumentParser) -> None:
         help="with --video: a camera of the scene, or 'all' (every camera tiled); "
         "default: the environment's (Doors: follow)",
     )
-    add_world_arguments(p)
+
+
+def _add_diagnosis_arguments(p: argparse.ArgumentParser) -> None:
+    """Re-simulating plans, and explaining failed tasks."""
     p.add_argument("--no-validate", action="store_true", help="skip re-simulating plans")
     p.add_argument(
         "--explain",
@@ -119,6 +147,10 @@ def configure(p: argparse.ArgumentParser) -> None:
         help="print why each failed task failed: the abstract plans tried and, per step, the "
         "samples that failed and why (also in results.json, `explanation`)",
     )
+
+
+def _add_report_arguments(p: argparse.ArgumentParser) -> None:
+    """What report.html shows, Rerun recordings, and whether outputs are replaced."""
     p.add_argument(
         "--report-videos",
         choices=REPORT_VIDEOS,
@@ -247,52 +279,15 @@ def world_settings(
 
 def run(args: argparse.Namespace) -> int:
     worlds, model, execution = world_settings(args)
-    if args.video is None and (args.task is not None or args.camera is not None):
-        raise UserError("--task and --camera choose what --video renders: pass --video too")
-    if args.task is not None and args.task >= args.tasks:
-        raise UserError(f"--task {args.task}: only tasks 0..{args.tasks - 1} are evaluated")
+    _check_video_flags(args)
     names = list(dict.fromkeys(args.approach))
     approaches = [approach_by_name(a) for a in names]
     check_eval_outputs(args.out, args.video, names, args.overwrite, args.skills)
     check_inspect_outputs(args, names)
     workers = capped_to_cores(args.workers, "--workers")
-    learned = None
-    if any(a.skills is SkillSource.LEARNED for a in approaches):
-        if args.skills is None:
-            raise UserError("learned approaches need --skills DIR (from `bpns learn`)")
-        env, learned = learned_in(args.skills, args.env)
-    elif args.env is None and args.skills is None:
-        raise UserError("pass --env (or --skills) to say which environment to evaluate on")
-    elif args.env is None:
-        env, _ = learned_in(args.skills)  # the environment the skills record
-    else:
-        env = env_by_name(args.env)
-    try:  # an environment without perturbations says so now
-        perturbed(env, worlds.draw(0))
-        perturbed(env, model.belief)
-    except PerturbationError as err:
-        raise UserError(f"--perturb: {err}") from None
-    if (
-        any(a.skills is SkillSource.ORACLE for a in approaches)
-        and not env.capabilities.has_oracle_skills
-    ):
-        raise UserError(f"environment {env.name!r} declares no oracle skills")
-    try:
-        base = planning_config_for(
-            env,
-            timeout=args.timeout,
-            n_abstract=args.n_abstract,
-            n_samples=args.n_samples,
-            nogood_atol=None if args.nogood_atol == "off" else args.nogood_atol,
-            set_aside_after=None if args.set_aside_after == "off" else args.set_aside_after,
-            end_at_dead_end=False if args.run_past_dead_ends else None,
-        )
-        if args.nogood_atol == "off":
-            base = dataclasses.replace(base, nogood_atol=None)
-        if args.set_aside_after == "off":
-            base = dataclasses.replace(base, set_aside_after=None)
-    except (TypeError, ValueError) as err:
-        raise UserError(f"bad planning settings: {err}") from None
+    env, learned = _evaluated_environment(args, approaches)
+    _check_environment_supports(env, worlds, model, approaches)
+    base = _planning_settings(args, env)
     request = EvalRequest(
         num_tasks=args.tasks,
         task_seed=args.seed,
@@ -314,6 +309,85 @@ def run(args: argparse.Namespace) -> int:
         progress=task_progress,
         finished=lambda report: print(solved_line(report), flush=True),
     )
+    _write_outputs(args, env, reports)
+    if args.explain:
+        for report in reports:
+            for line in explain_lines(report):
+                print(line)
+    return 0 if all(r.num_solved for r in reports) else 1
+
+
+def _check_video_flags(args: argparse.Namespace) -> None:
+    """--task and --camera only mean something for --video, and --task must be a task
+    that is evaluated: said before any task runs."""
+    if args.video is None and (args.task is not None or args.camera is not None):
+        raise UserError("--task and --camera choose what --video renders: pass --video too")
+    if args.task is not None and args.task >= args.tasks:
+        raise UserError(f"--task {args.task}: only tasks 0..{args.tasks - 1} are evaluated")
+
+
+def _evaluated_environment(
+    args: argparse.Namespace, approaches: Sequence[ApproachEntry]
+) -> tuple[Environment, LearnedSkills | None]:
+    """The environment (--env, else the one --skills records) and the learned skills,
+    loaded only when a learned approach needs them."""
+    if any(a.skills is SkillSource.LEARNED for a in approaches):
+        if args.skills is None:
+            raise UserError("learned approaches need --skills DIR (from `bpns learn`)")
+        return learned_in(args.skills, args.env)
+    if args.env is None and args.skills is None:
+        raise UserError("pass --env (or --skills) to say which environment to evaluate on")
+    if args.env is None:
+        env, _ = learned_in(args.skills)  # the environment the skills record
+        return env, None
+    return env_by_name(args.env), None
+
+
+def _check_environment_supports(
+    env: Environment,
+    worlds: WorldDistribution,
+    model: ModelSpec,
+    approaches: Sequence[ApproachEntry],
+) -> None:
+    """An environment without perturbations, or without the oracle skills an approach
+    needs, says so now rather than after the first task."""
+    try:
+        perturbed(env, worlds.draw(0))
+        perturbed(env, model.belief)
+    except PerturbationError as err:
+        raise UserError(f"--perturb: {err}") from None
+    if (
+        any(a.skills is SkillSource.ORACLE for a in approaches)
+        and not env.capabilities.has_oracle_skills
+    ):
+        raise UserError(f"environment {env.name!r} declares no oracle skills")
+
+
+def _planning_settings(args: argparse.Namespace, env: Environment) -> PlanningConfig:
+    """The planning flags over the environment's settings; 'off' turns a setting off
+    even where the environment sets it."""
+    try:
+        base = planning_config_for(
+            env,
+            timeout=args.timeout,
+            n_abstract=args.n_abstract,
+            n_samples=args.n_samples,
+            nogood_atol=None if args.nogood_atol == "off" else args.nogood_atol,
+            set_aside_after=None if args.set_aside_after == "off" else args.set_aside_after,
+            end_at_dead_end=False if args.run_past_dead_ends else None,
+        )
+        if args.nogood_atol == "off":
+            base = dataclasses.replace(base, nogood_atol=None)
+        if args.set_aside_after == "off":
+            base = dataclasses.replace(base, set_aside_after=None)
+    except (TypeError, ValueError) as err:
+        raise UserError(f"bad planning settings: {err}") from None
+    return base
+
+
+def _write_outputs(args: argparse.Namespace, env: Environment, reports: list[EvalReport]) -> None:
+    """The Rerun recordings, the results files, report.html and the video, then what
+    was written (the page links the recordings, so they come first)."""
     recorded = []
     if args.rerun is not None:
         with writing(args.rerun, "--rerun"):
@@ -326,8 +400,3 @@ def run(args: argparse.Namespace) -> int:
     print_lines(reported)
     if reported.no_video_of is not None:
         print(f"no {reported.no_video_of} task was solved: no video", file=sys.stderr)
-    if args.explain:
-        for report in reports:
-            for line in explain_lines(report):
-                print(line)
-    return 0 if all(r.num_solved for r in reports) else 1
