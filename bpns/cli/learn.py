@@ -28,10 +28,27 @@ HELP = "learn neuro-symbolic skills from demonstrations"
 
 
 def configure(p: argparse.ArgumentParser) -> None:
+    """The flags by concern; the order of the calls is the order ``--help`` lists them."""
+    _add_data_arguments(p)
+    _add_skill_arguments(p)
+    _add_paper_arguments(p)
+    _add_operator_arguments(p)
+    _add_baseline_arguments(p)
+    _add_run_arguments(p)
+
+
+def _add_data_arguments(p: argparse.ArgumentParser) -> None:
+    """The demonstrations learned from, the skills directory written, and the seed that
+    makes the weights reproducible."""
     p.add_argument("demos", type=path_arg, help="demonstration .h5 file (from `bpns demos`)")
     p.add_argument("--out", required=True, type=path_arg, help="skills directory to write")
     p.add_argument("--limit", type=positive, help="learn from the first N demos only")
     p.add_argument("--seed", type=nonnegative, default=0, help="seed of all network training")
+
+
+def _add_skill_arguments(p: argparse.ArgumentParser) -> None:
+    """Which skills are kept and what their networks see (subgoals, near-goal inputs,
+    input clipping)."""
     p.add_argument(
         "--min-segment-fraction",
         type=nonnegative_float,
@@ -55,6 +72,11 @@ def configure(p: argparse.ArgumentParser) -> None:
         help="networks clip their inputs into the training range widened by this fraction "
         "of it (default 0.1), or 'off' as in the paper",
     )
+
+
+def _add_paper_arguments(p: argparse.ArgumentParser) -> None:
+    """Switches back to the paper's choices where the defaults depart from it, for
+    ablations."""
     p.add_argument(
         "--no-anchor",
         action="store_true",
@@ -82,6 +104,10 @@ def configure(p: argparse.ArgumentParser) -> None:
         "start where none of its demonstrations started, e.g. a hand press at a button "
         "farther than any pressed by hand, and the planner moves on without simulating)",
     )
+
+
+def _add_operator_arguments(p: argparse.ArgumentParser) -> None:
+    """How contact events are cut into segments and how the operators are named."""
     p.add_argument(
         "--settle-steps",
         type=positive,
@@ -93,6 +119,10 @@ def configure(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="name operators Op0, Op1, ... as in the paper instead of after their effects",
     )
+
+
+def _add_baseline_arguments(p: argparse.ArgumentParser) -> None:
+    """The paper's baselines, learned from the same demonstrations when asked."""
     p.add_argument(
         "--baselines",
         action="store_true",
@@ -111,6 +141,10 @@ def configure(p: argparse.ArgumentParser) -> None:
         help="with --baselines: seed of the GNNs (default: --seed), e.g. to measure how "
         "much their initial weights matter on fixed skills",
     )
+
+
+def _add_run_arguments(p: argparse.ArgumentParser) -> None:
+    """How the run treats an existing --out and how much of the machine it uses."""
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     p.add_argument(
         "--threads",
