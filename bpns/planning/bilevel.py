@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,10 +27,10 @@ from bpns.execution.rollouts import Rollout, further
 from bpns.planning.config import PlanningConfig
 from bpns.planning.heuristics import make_heuristic
 from bpns.planning.nogoods import NogoodMemo, PrefixCache, SetAsidePrefixes
-from bpns.planning.refinement import RefinementStats, refine
+from bpns.planning.refinement import RefinementResult, RefinementStats, refine
 from bpns.planning.search import STRATEGIES, AbstractPlan, SearchStats, skeletons
 from bpns.planning.strips import SearchTimeout, ground
-from bpns.structs import Skill, State, STRIPSOperator, Task
+from bpns.structs import GroundAtom, Skill, State, STRIPSOperator, Task
 
 
 @dataclass(frozen=True)
@@ -110,11 +110,7 @@ def plan(
     """Solve ``task`` with ``skills`` by bilevel planning within ``config.timeout`` seconds."""
     start = time.monotonic()
     deadline = start + config.timeout
-    by_operator: dict[STRIPSOperator, Skill] = {}
-    for s in skills:
-        if s.operator in by_operator:
-            raise ValueError(f"two skills share the operator {s.operator.name}")
-        by_operator[s.operator] = s
+    by_operator = _skills_by_operator(skills)
     action_dim = np.asarray(env.action_low).size
     acc = _Accumulator(start)
 
@@ -123,78 +119,142 @@ def plan(
         return acc.result(True, task, action_dim, None, AbstractPlan((), (init_atoms,), 0.0))
 
     try:
-        t0 = time.monotonic()
-        try:
-            problem = ground(list(by_operator), task.objects, init_atoms, task.goal, deadline)
-            heuristic = (
-                None if config.search == "ucs" else make_heuristic(config.heuristic, problem)
-            )
-        finally:
-            acc.search_time += time.monotonic() - t0
-        acc.ground_operators = len(problem.operators)
-        memo = None if config.nogood_atol is None else NogoodMemo(config.nogood_atol)
-        prefixes = PrefixCache() if config.reuse_prefixes else None
-        generator = skeletons(
-            problem,
-            heuristic,
-            STRATEGIES[config.search],
-            max_skeletons=config.n_abstract,
-            max_length=min(config.max_plan_length, task.horizon),  # each skill acts >= once
-            max_repeats=config.max_state_repeats,
-            deadline=deadline,
-            stats=acc.search,
+        generator = _skeletons(task, by_operator, init_atoms, config, deadline, acc)
+        refiner = _Refiner(
+            task,
+            by_operator,
+            env,
+            rng,
+            deadline,
+            None if config.nogood_atol is None else NogoodMemo(config.nogood_atol),
+            PrefixCache() if config.reuse_prefixes else None,
+            SetAsidePrefixes(),
         )
-        set_aside: list[AbstractPlan] = []  # refined again, without the limit, at the end
-        doomed = SetAsidePrefixes()
-        patient = dataclasses.replace(config, set_aside_after=None)
-        while True:
-            t0 = time.monotonic()
-            try:
-                skeleton = next(generator, None)
-            finally:
-                acc.search_time += time.monotonic() - t0
-            refining = config
-            if skeleton is None:
-                if not set_aside:
-                    break
-                skeleton, refining = set_aside.pop(0), patient
-            acc.plans_tried += 1
-            t0 = time.monotonic()
-            ref = refine(
-                skeleton,
-                [by_operator[op.operator] for op in skeleton.operators],
-                task,
-                env,
-                refining,
-                rng,
-                deadline,
-                memo,
-                prefixes,
-                doomed,
-            )
-            acc.refinement_time += time.monotonic() - t0
-            acc.add(ref.stats, skeleton, ref.reason)
-            acc.furthest = further(acc.furthest, ref.furthest)
-            if ref.success:
-                return PlanResult(
-                    success=True,
-                    actions=ref.actions,
-                    states=ref.states,
-                    skeleton=skeleton,
-                    skills=ref.skills,
-                    reason=None,
-                    stats=acc.freeze(),
-                    step_starts=ref.step_starts,
-                    subgoals=ref.subgoals,
-                )
-            if ref.reason is FailureReason.TIMEOUT:
-                raise SearchTimeout
-            if ref.reason is FailureReason.SET_ASIDE:
-                set_aside.append(skeleton)
+        solved = _refine_in_turn(generator, refiner, config, acc)
     except SearchTimeout:
         return acc.result(False, task, action_dim, FailureReason.TIMEOUT, None)
+    if solved is not None:
+        return solved
     reason = FailureReason.REFINEMENT_FAILED if acc.plans_tried else FailureReason.NO_ABSTRACT_PLAN
     return acc.result(False, task, action_dim, reason, None)
+
+
+def _skills_by_operator(skills: Sequence[Skill]) -> dict[STRIPSOperator, Skill]:
+    """Each skeleton step names an operator: it must pick out exactly one skill."""
+    by_operator: dict[STRIPSOperator, Skill] = {}
+    for s in skills:
+        if s.operator in by_operator:
+            raise ValueError(f"two skills share the operator {s.operator.name}")
+        by_operator[s.operator] = s
+    return by_operator
+
+
+def _skeletons(
+    task: Task,
+    by_operator: dict[STRIPSOperator, Skill],
+    init_atoms: frozenset[GroundAtom],
+    config: PlanningConfig,
+    deadline: float,
+    acc: _Accumulator,
+) -> Iterator[AbstractPlan]:
+    """The lazy abstract-plan search over the grounded task; grounding counts as
+    search time, and raises ``SearchTimeout`` past ``deadline``."""
+    t0 = time.monotonic()
+    try:
+        problem = ground(list(by_operator), task.objects, init_atoms, task.goal, deadline)
+        heuristic = None if config.search == "ucs" else make_heuristic(config.heuristic, problem)
+    finally:
+        acc.search_time += time.monotonic() - t0
+    acc.ground_operators = len(problem.operators)
+    return skeletons(
+        problem,
+        heuristic,
+        STRATEGIES[config.search],
+        max_skeletons=config.n_abstract,
+        max_length=min(config.max_plan_length, task.horizon),  # each skill acts >= once
+        max_repeats=config.max_state_repeats,
+        deadline=deadline,
+        stats=acc.search,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class _Refiner:
+    """What every skeleton's refinement shares within one call of :func:`plan`: the
+    task, the skills, the clock and the memories of refuted states and prefixes."""
+
+    task: Task
+    by_operator: dict[STRIPSOperator, Skill]
+    env: Environment
+    rng: np.random.Generator
+    deadline: float
+    memo: NogoodMemo | None
+    prefixes: PrefixCache | None
+    doomed: SetAsidePrefixes
+
+    def refine(self, skeleton: AbstractPlan, config: PlanningConfig) -> RefinementResult:
+        return refine(
+            skeleton,
+            [self.by_operator[op.operator] for op in skeleton.operators],
+            self.task,
+            self.env,
+            config,
+            self.rng,
+            self.deadline,
+            self.memo,
+            self.prefixes,
+            self.doomed,
+        )
+
+
+def _refine_in_turn(
+    generator: Iterator[AbstractPlan],
+    refiner: _Refiner,
+    config: PlanningConfig,
+    acc: _Accumulator,
+) -> PlanResult | None:
+    """Refine each skeleton as the search yields it, then those set aside without the
+    limit; the first refined is the plan (None: none was). Raises ``SearchTimeout``."""
+    set_aside: list[AbstractPlan] = []  # refined again, without the limit, at the end
+    patient = dataclasses.replace(config, set_aside_after=None)
+    while True:
+        t0 = time.monotonic()
+        try:
+            skeleton = next(generator, None)
+        finally:
+            acc.search_time += time.monotonic() - t0
+        refining = config
+        if skeleton is None:
+            if not set_aside:
+                return None
+            skeleton, refining = set_aside.pop(0), patient
+        acc.plans_tried += 1
+        t0 = time.monotonic()
+        ref = refiner.refine(skeleton, refining)
+        acc.refinement_time += time.monotonic() - t0
+        acc.add(ref.stats, skeleton, ref.reason)
+        acc.furthest = further(acc.furthest, ref.furthest)
+        if ref.success:
+            return _solved(ref, skeleton, acc)
+        if ref.reason is FailureReason.TIMEOUT:
+            raise SearchTimeout
+        if ref.reason is FailureReason.SET_ASIDE:
+            set_aside.append(skeleton)
+
+
+def _solved(ref: RefinementResult, skeleton: AbstractPlan, acc: _Accumulator) -> PlanResult:
+    """The plan of a refined ``skeleton``, with the statistics of the whole search."""
+    return PlanResult(
+        success=True,
+        actions=ref.actions,
+        states=ref.states,
+        skeleton=skeleton,
+        skills=ref.skills,
+        reason=None,
+        stats=acc.freeze(),
+        step_starts=ref.step_starts,
+        subgoals=ref.subgoals,
+    )
 
 
 class _Accumulator:
