@@ -178,14 +178,7 @@ class Metacontroller(Approach):
                 )
                 samples += drawn
                 if isinstance(out, FailureReason):
-                    ran = out not in NOT_EXECUTED
-                    attempt = (
-                        op,
-                        executor.last_subgoal if ran else None,
-                        executor.last_actions if ran else [],
-                        str(out),
-                    )
-                    return failed(out, str(op), attempt)
+                    return failed(out, str(op), _failed_attempt(op, out, executor))
                 assert subgoal is not None
                 if world_env is None or state is run.state:  # the world is the model
                     run.reuse(op, subgoal, out.actions, out.states)
@@ -213,3 +206,17 @@ class Metacontroller(Approach):
             rollout=run.rollout(),
             replans=replans,
         )
+
+
+def _failed_attempt(
+    op: GroundOperator, reason: FailureReason, executor: SkillExecutor
+) -> tuple[GroundOperator, np.ndarray | None, list[np.ndarray], str]:
+    """The failed execution as the rollout records it: what the executor last ran, or
+    nothing when the failure came before anything was executed (``NOT_EXECUTED``)."""
+    ran = reason not in NOT_EXECUTED
+    return (
+        op,
+        executor.last_subgoal if ran else None,
+        executor.last_actions if ran else [],
+        str(reason),
+    )
