@@ -377,56 +377,167 @@ def train_gnn(vocab: GraphVocabulary, data: GNNTrainingData, config: GNNConfig) 
     Seeded: same data and config give the same weights (for the configured thread
     count). torch's thread count is set to ``config.torch_threads`` for the duration.
     """
-    import torch  # lazy: planning runs NumpyGNN, without torch
-
     t0 = time.perf_counter()
     n_all = len(data.graphs)
     if n_all == 0:
         raise ValueError("cannot train a GNN on zero examples")
     rng = np.random.default_rng(config.seed)
+    graphs, gt, node_t = _subsample(data, config, rng)
+    raw_mean, raw_std = raw_standardisation(vocab, graphs, config.std_floor)
+    if data.standardise_outputs:
+        out_mean, out_std = standardisation(gt, config.std_floor)
+    else:
+        out_mean, out_std = np.zeros(gt.shape[1]), np.ones(gt.shape[1])
+    examples = _examples(vocab, graphs, (gt - out_mean) / out_std, node_t, raw_mean, raw_std)
+    schedule = _Schedule.of(config, len(graphs))
+    net, step, loss_value = _fit(vocab, examples, schedule, config, rng)
+    params = _params_from_torch(net, config.message_steps, raw_mean, raw_std, out_mean, out_std)
+    stats = GNNTrainingStats(
+        num_examples=n_all,
+        num_used=len(graphs),
+        epochs=step / schedule.per_epoch,
+        steps=step,
+        seconds=time.perf_counter() - t0,
+        final_loss=loss_value,
+    )
+    return TrainedGNN(params, stats)
+
+
+def _subsample(
+    data: GNNTrainingData, config: GNNConfig, rng: np.random.Generator
+) -> tuple[list[GraphInput], np.ndarray, list[np.ndarray] | None]:
+    """(graphs, global targets as rows, node targets) of the examples trained on: all of
+    them, or ``config.max_examples`` drawn (in their order) to bound the training time."""
+    n_all = len(data.graphs)
     chosen = np.arange(n_all)
     if config.max_examples is not None and n_all > config.max_examples:
         chosen = np.sort(rng.choice(n_all, size=config.max_examples, replace=False))
     graphs = [data.graphs[i] for i in chosen]
     gt = np.asarray(data.global_targets, dtype=np.float64)[chosen].reshape(len(chosen), -1)
     node_t = None if data.node_targets is None else [data.node_targets[i] for i in chosen]
-    raw_mean, raw_std = raw_standardisation(vocab, graphs, config.std_floor)
-    if data.standardise_outputs:
-        out_mean, out_std = standardisation(gt, config.std_floor)
-    else:
-        out_mean, out_std = np.zeros(gt.shape[1]), np.ones(gt.shape[1])
+    return graphs, gt, node_t
+
+
+@dataclass(frozen=True, eq=False)
+class _Layout:
+    """Where each graph's rows lie in the concatenation, and its edges' endpoints
+    numbered within the graph: what a minibatch needs to gather its graphs."""
+
+    n_nodes: np.ndarray
+    n_edges: np.ndarray
+    node_start: np.ndarray
+    edge_start: np.ndarray
+    local_s: np.ndarray
+    local_r: np.ndarray
+
+    @staticmethod
+    def of(graphs: Sequence[GraphInput], whole: GraphBatch) -> _Layout:
+        n_nodes = np.array([len(g.nodes) for g in graphs])
+        n_edges = np.array([len(g.edges) for g in graphs])
+        node_start = np.concatenate(([0], np.cumsum(n_nodes)[:-1]))
+        edge_start = np.concatenate(([0], np.cumsum(n_edges)[:-1]))
+        local_s = whole.senders - np.repeat(node_start, n_edges)
+        local_r = whole.receivers - np.repeat(node_start, n_edges)
+        return _Layout(n_nodes, n_edges, node_start, edge_start, local_s, local_r)
+
+    def gather(self, ids: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
+        """:func:`_gather` of the graphs ``ids``."""
+        return _gather(
+            ids,
+            self.n_nodes,
+            self.n_edges,
+            self.node_start,
+            self.edge_start,
+            self.local_s,
+            self.local_r,
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class _Examples:
+    """The examples concatenated once, inputs and targets standardised, so that a
+    minibatch is only a gather."""
+
+    nodes: np.ndarray
+    edges: np.ndarray
+    globals: np.ndarray
+    global_targets: np.ndarray
+    node_targets: np.ndarray | None
+    node_out: int  # 0: no node head
+    layout: _Layout
+
+
+def _examples(
+    vocab: GraphVocabulary,
+    graphs: Sequence[GraphInput],
+    global_targets: np.ndarray,
+    node_targets: Sequence[np.ndarray] | None,
+    raw_mean: np.ndarray,
+    raw_std: np.ndarray,
+) -> _Examples:
+    """``graphs`` concatenated with their raw features standardised per type."""
     whole = batch_graphs(graphs)
     nodes_std = whole.nodes.copy()
     raw = vocab.raw_offset
     nodes_std[:, raw:] = (nodes_std[:, raw:] - raw_mean[whole.node_types]) / raw_std[
         whole.node_types
     ]
-    n_nodes = np.array([len(g.nodes) for g in graphs])
-    n_edges = np.array([len(g.edges) for g in graphs])
-    node_start = np.concatenate(([0], np.cumsum(n_nodes)[:-1]))
-    edge_start = np.concatenate(([0], np.cumsum(n_edges)[:-1]))
-    local_s = whole.senders - np.repeat(node_start, n_edges)
-    local_r = whole.receivers - np.repeat(node_start, n_edges)
-    node_out = 0 if node_t is None else int(node_t[0].shape[1])
-    before = torch.get_num_threads()
-    torch.set_num_threads(config.torch_threads)
-    try:
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(config.seed)
-            net = _build_torch(vocab, config, node_out, gt.shape[1])
-        T = lambda a, dt=torch.float32: torch.as_tensor(a, dtype=dt)  # noqa: E731
-        all_nodes, all_edges = T(nodes_std), T(whole.edges)
-        all_glob = T(whole.globals)
-        all_gt = T((gt - out_mean) / out_std)
-        all_nt = T(np.concatenate(node_t)) if node_t is not None else None
-        params = list(net.parameters())
-        adam = Adam(params, config.learning_rate)
-        n = len(graphs)
+    return _Examples(
+        nodes_std,
+        whole.edges,
+        whole.globals,
+        global_targets,
+        None if node_targets is None else np.concatenate(node_targets),
+        0 if node_targets is None else int(node_targets[0].shape[1]),
+        _Layout.of(graphs, whole),
+    )
+
+
+@dataclass(frozen=True)
+class _Schedule:
+    """Minibatch size and gradient steps: ``config.epochs`` passes over ``n``
+    examples, capped at ``config.max_steps``."""
+
+    batch_size: int
+    per_epoch: int
+    total: int
+
+    @staticmethod
+    def of(config: GNNConfig, n: int) -> _Schedule:
         bs = min(config.batch_size, n)
         per_epoch = math.ceil(n / bs)
         total = config.epochs * per_epoch
         if config.max_steps is not None:
             total = min(total, config.max_steps)
+        return _Schedule(bs, per_epoch, total)
+
+
+def _fit(
+    vocab: GraphVocabulary,
+    examples: _Examples,
+    schedule: _Schedule,
+    config: GNNConfig,
+    rng: np.random.Generator,
+) -> tuple[torch.nn.ModuleDict, int, float]:
+    """(net, steps taken, last loss) of Adam on minibatches shuffled by ``rng``; torch's
+    thread count is ``config.torch_threads`` meanwhile, and the net's initial weights
+    come from ``config.seed`` without touching torch's global generator."""
+    import torch  # lazy: planning runs NumpyGNN, without torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(config.torch_threads)
+    try:
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(config.seed)
+            net = _build_torch(vocab, config, examples.node_out, examples.global_targets.shape[1])
+        T = lambda a, dt=torch.float32: torch.as_tensor(a, dtype=dt)  # noqa: E731
+        all_nodes, all_edges = T(examples.nodes), T(examples.edges)
+        all_glob = T(examples.globals)
+        all_gt = T(examples.global_targets)
+        all_nt = T(examples.node_targets) if examples.node_targets is not None else None
+        params = list(net.parameters())
+        adam = Adam(params, config.learning_rate)
+        n, bs, total = len(examples.layout.n_nodes), schedule.batch_size, schedule.total
         step, loss_value = 0, float("nan")
         while step < total:
             perm = rng.permutation(n)
@@ -434,9 +545,7 @@ def train_gnn(vocab: GraphVocabulary, data: GNNTrainingData, config: GNNConfig) 
                 if step == total:
                     break
                 ids = perm[start : start + bs]
-                b, node_idx = _gather(
-                    ids, n_nodes, n_edges, node_start, edge_start, local_s, local_r
-                )
+                b, node_idx = examples.layout.gather(ids)
                 tb = _TorchBatch(
                     all_nodes[T(node_idx, torch.long)],
                     all_edges[T(b["edge_idx"], torch.long)],
@@ -459,16 +568,7 @@ def train_gnn(vocab: GraphVocabulary, data: GNNTrainingData, config: GNNConfig) 
                 step += 1
     finally:
         torch.set_num_threads(before)
-    params = _params_from_torch(net, config.message_steps, raw_mean, raw_std, out_mean, out_std)
-    stats = GNNTrainingStats(
-        num_examples=n_all,
-        num_used=len(graphs),
-        epochs=step / per_epoch,
-        steps=step,
-        seconds=time.perf_counter() - t0,
-        final_loss=loss_value,
-    )
-    return TrainedGNN(params, stats)
+    return net, step, loss_value
 
 
 def _gather(
