@@ -127,6 +127,14 @@ class _Timer:
         finally:
             self.seconds[name] = self.seconds.get(name, 0.0) + time.perf_counter() - t0
 
+    def share(self, trained: Sequence[TrainedNetwork], wall: float) -> None:
+        """Charge each stage its networks' share of the ``wall`` time spent training:
+        training overlaps preparing (and runs in parallel), so job times overcount it."""
+        busy = sum(t.seconds for t in trained) or 1.0
+        for t in trained:
+            share = wall * t.seconds / busy
+            self.seconds[t.stage] = self.seconds.get(t.stage, 0.0) + share
+
 
 def learn_skills(
     demos: Sequence[Demonstration],
@@ -199,49 +207,7 @@ def learn_from_segments(
             groups, config.min_segment_fraction, config.anchor_parameters, config.index_names
         )
     say(f"{len(datasets)} operators from {len(groups)} groups")
-    skills: list[Skill | None] = []
-    skill_stats: list[SkillStats] = []
-    pending: list[_PendingSkill] = []
-    learnable = sum(match_given(d.operator, given) is None for d in datasets)
-    threads = _torch_threads()
-    # each network starts training as soon as its data is ready, while the next is prepared
-    with _Trainer(workers if learnable > 1 else 1) as trainer:
-        for k, dataset in enumerate(datasets):
-            produced_by = match_given(dataset.operator, given)
-            if produced_by is not None:  # a given skill: its policy and sampler, nothing trained
-                say(f"{dataset.operator.name}: given skill {produced_by[0].name}")
-                skills.append(_given_skill(dataset, produced_by, config))
-                skill_stats.append(SkillStats(dataset.operator.name, len(dataset), 0, 0))
-                continue
-            shared = shared_data(datasets, k) if config.share_effect_data else None
-            lent = "" if shared is None else f" + {len(shared.segments) - len(dataset)} lent"
-            say(
-                f"preparing {dataset.operator.name} ({k + 1}/{len(datasets)}, "
-                f"{len(dataset)} segments{lent})"
-            )
-            with timer.stage("policies"):
-                scopes, dims, actions = _policy_data(dataset, shared, config)
-            policy = trainer.submit(_policy_job(scopes, actions, dims, config, k, threads))
-            fit = generator = classifier = None
-            negatives = 0
-            if config.use_subgoals:
-                with timer.stage("samplers"):
-                    fit, negatives = _sampler_fit(dataset, shared, scopes, dims, groups, config, k)
-                generator, classifier = _submit_sampler(trainer, fit, config, k, threads)
-            pending.append(_PendingSkill(len(skills), dataset, policy, fit, generator, classifier))
-            skills.append(None)  # trained below
-            skill_stats.append(
-                SkillStats(dataset.operator.name, len(dataset), _num_samples(dataset), negatives)
-            )
-        say(f"training the networks of {len(pending)} skills")
-        trained = trainer.results()
-    for p in pending:
-        skills[p.slot] = _assemble(p, trained, config)
-    # each stage gets its share of the training's wall time
-    busy = sum(t.seconds for t in trained) or 1.0
-    for t in trained:
-        share = trainer.seconds * t.seconds / busy
-        timer.seconds[t.stage] = timer.seconds.get(t.stage, 0.0) + share
+    skills, skill_stats = _skills_of(datasets, groups, config, given, workers, timer, say)
     kept = sum(len(d) for d in datasets)
     stats = LearningStats(
         num_demos=len(demos),
@@ -250,16 +216,91 @@ def learn_from_segments(
         num_groups=len(groups),
         num_dropped_groups=len(groups) - len(datasets),
         num_dropped_segments=len(segments) - kept,
-        skills=tuple(skill_stats),
+        skills=skill_stats,
         stage_seconds=tuple((s, timer.seconds.get(s, 0.0)) for s in STAGES),
     )
     return LearnedSkills(
-        tuple(s for s in skills if s is not None),
+        skills,
         frozenset(predicates),
         config,
         stats,
         tuple(tuple(segs) for segs in per_demo),
     )
+
+
+def _skills_of(
+    datasets: Sequence[SkillDataset],
+    groups: Sequence[SegmentGroup],
+    config: LearningConfig,
+    given: Sequence[GivenSkill],
+    workers: int,
+    timer: _Timer,
+    say: Callable[[str], None],
+) -> tuple[tuple[Skill, ...], tuple[SkillStats, ...]]:
+    """A skill per operator, in the operators' order: a given skill's policy and sampler
+    where one produces the operator, else trained networks."""
+    skills: list[Skill | None] = []
+    skill_stats: list[SkillStats] = []
+    pending: list[_PendingSkill] = []
+    learnable = sum(match_given(d.operator, given) is None for d in datasets)
+    threads = _torch_threads()
+    # each network starts training as soon as its data is ready, while the next is prepared
+    with _Trainer(workers if learnable > 1 else 1) as trainer:
+        submitter = _Submitter(trainer, datasets, groups, config, threads, timer, say)
+        for k, dataset in enumerate(datasets):
+            produced_by = match_given(dataset.operator, given)
+            if produced_by is not None:  # a given skill: its policy and sampler, nothing trained
+                say(f"{dataset.operator.name}: given skill {produced_by[0].name}")
+                skills.append(_given_skill(dataset, produced_by, config))
+                skill_stats.append(SkillStats(dataset.operator.name, len(dataset), 0, 0))
+                continue
+            waiting, stats = submitter.submit(k, slot=len(skills))
+            pending.append(waiting)
+            skills.append(None)  # trained below
+            skill_stats.append(stats)
+        say(f"training the networks of {len(pending)} skills")
+        trained = trainer.results()
+    for p in pending:
+        skills[p.slot] = _assemble(p, trained, config)
+    timer.share(trained, trainer.seconds)
+    return tuple(s for s in skills if s is not None), tuple(skill_stats)
+
+
+@dataclass(frozen=True, eq=False)
+class _Submitter:
+    """Prepares a learnable skill's training data and submits its networks to
+    ``trainer``; what every skill of one learning run shares."""
+
+    trainer: _Trainer
+    datasets: Sequence[SkillDataset]
+    groups: Sequence[SegmentGroup]
+    config: LearningConfig
+    threads: int
+    timer: _Timer
+    say: Callable[[str], None]
+
+    def submit(self, k: int, slot: int) -> tuple[_PendingSkill, SkillStats]:
+        """Skill ``k``'s jobs (its policy, then its sampler's networks) waiting in
+        ``slot`` of the learned list, and what it learns from."""
+        dataset, config = self.datasets[k], self.config
+        shared = shared_data(self.datasets, k) if config.share_effect_data else None
+        lent = "" if shared is None else f" + {len(shared.segments) - len(dataset)} lent"
+        self.say(
+            f"preparing {dataset.operator.name} ({k + 1}/{len(self.datasets)}, "
+            f"{len(dataset)} segments{lent})"
+        )
+        with self.timer.stage("policies"):
+            scopes, dims, actions = _policy_data(dataset, shared, config)
+        policy = self.trainer.submit(_policy_job(scopes, actions, dims, config, k, self.threads))
+        fit = generator = classifier = None
+        negatives = 0
+        if config.use_subgoals:
+            with self.timer.stage("samplers"):
+                fit, negatives = _sampler_fit(dataset, shared, scopes, dims, self.groups, config, k)
+            generator, classifier = _submit_sampler(self.trainer, fit, config, k, self.threads)
+        waiting = _PendingSkill(slot, dataset, policy, fit, generator, classifier)
+        stats = SkillStats(dataset.operator.name, len(dataset), _num_samples(dataset), negatives)
+        return waiting, stats
 
 
 def _given_skill(
