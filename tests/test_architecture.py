@@ -9,6 +9,8 @@
   ``mujoco``, and no ``bpns`` module names a domain.
 * Inside a domain package, the demonstrator and the oracle skills depend on the
   environment side (rules, scene, behaviours), never the reverse.
+* Every exception class the project defines derives from ``bpns.errors.BpnsError``,
+  so one ``except BpnsError`` catches whatever it raises on purpose.
 
 The domains are the registry's (the ``bpns.environments`` entry points), not a list here.
 """
@@ -16,6 +18,7 @@ The domains are the registry's (the ``bpns.environments`` entry points), not a l
 from __future__ import annotations
 
 import ast
+import builtins
 from importlib.metadata import entry_points
 from pathlib import Path
 
@@ -199,3 +202,41 @@ def test_shared_machinery_imports_no_domain():
             "mj_envs.scene",
         ):
             assert not {t for t in targets if t.startswith("mj_envs.domains")}, name
+
+
+def _class_bases() -> dict[str, set[str]]:
+    """Every class the project defines (by name) and the names of its bases, across
+    all its definitions (``errors.BpnsError`` counts as ``BpnsError``)."""
+    bases: dict[str, set[str]] = {}
+    for path in _modules().values():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ClassDef):
+                names = {ast.unparse(b).rpartition(".")[2] for b in node.bases}
+                bases.setdefault(node.name, set()).update(names)
+    return bases
+
+
+def _derives(name: str, bases: dict[str, set[str]], root: type | str) -> bool:
+    """Whether class ``name`` derives from ``root``: a builtin class (any builtin
+    subclass of it counts) or the name of a project class."""
+    builtin = getattr(builtins, name, None)
+    if isinstance(root, type) and isinstance(builtin, type) and issubclass(builtin, root):
+        return True
+    if name == root:
+        return True
+    return any(_derives(b, bases, root) for b in bases.get(name, ()) if b != name)
+
+
+def test_every_exception_class_derives_from_bpns_error():
+    bases = _class_bases()
+    exceptions = {n for n in bases if n != "BpnsError" and _derives(n, bases, BaseException)}
+    # the walk finds the exceptions the planner, the skills and the CLI raise
+    assert {"SearchTimeout", "NoSubgoal", "UserError"} <= exceptions
+    outside = sorted(n for n in exceptions if not _derives(n, bases, "BpnsError"))
+    assert outside == [], f"exception classes not deriving from BpnsError: {outside}"
+
+
+def test_exception_check_flags_an_exception_outside_bpns_error():
+    bases = {"BpnsError": {"Exception"}, "Kept": {"BpnsError", "ValueError"}, "Stray": {"KeyError"}}
+    assert _derives("Stray", bases, BaseException) and _derives("Kept", bases, BaseException)
+    assert _derives("Kept", bases, "BpnsError") and not _derives("Stray", bases, "BpnsError")
