@@ -316,7 +316,7 @@ def check_gym(ctx: _Context) -> None:
         ctx.report.notes.append("gym: skipped (disabled)")
         return
     import gymnasium as gym  # lazy: ~0.1 s to import, and only this check needs it
-    from gymnasium.utils.env_checker import check_env
+    from gymnasium.utils.env_checker import check_env  # lazy, as gymnasium above
 
     ids = [
         id_
