@@ -14,25 +14,30 @@ from collections.abc import Callable, Collection, Iterator, Sequence
 from concurrent.futures import Executor, Future
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from bpns.learning.config import LearningConfig
 from bpns.learning.demo_checks import check_demonstrations
 from bpns.learning.given import BoundPolicy, BoundSampler, GivenSkill, match_given
+from bpns.learning.jobs import (
+    POLICIES,
+    SAMPLERS,
+    NetworkJob,
+    TrainedNetwork,
+    assemble_sampler,
+    policy_data,
+    policy_job,
+    sampler_fit,
+    sampler_jobs,
+    torch_threads,
+    train_network,
+)
 from bpns.learning.operators import SkillDataset, learn_operators
 from bpns.learning.partition import SegmentGroup, partition_segments
-from bpns.learning.policies import ScopeDims, scope_trajectories, train_policy
-from bpns.learning.samplers import (
-    CurrentStateSampler,
-    LearnedSampler,
-    SamplerFit,
-    sampler_training_data,
-)
+from bpns.learning.samplers import SamplerFit
 from bpns.learning.segmentation import segment_demonstration
-from bpns.learning.sharing import SharedData, shared_data
-from bpns.nets.mlp import train_classifier, train_gaussian
+from bpns.learning.sharing import shared_data
 from bpns.pools import make_pool, result_of
 from bpns.structs import Demonstration, Predicate, Segment, Skill, STRIPSOperator, Type
 
@@ -243,7 +248,7 @@ def _skills_of(
     skill_stats: list[SkillStats] = []
     pending: list[_PendingSkill] = []
     learnable = sum(match_given(d.operator, given) is None for d in datasets)
-    threads = _torch_threads()
+    threads = torch_threads()
     # each network starts training as soon as its data is ready, while the next is prepared
     with _Trainer(workers if learnable > 1 else 1) as trainer:
         submitter = _Submitter(trainer, datasets, groups, config, threads, timer, say)
@@ -289,15 +294,26 @@ class _Submitter:
             f"preparing {dataset.operator.name} ({k + 1}/{len(self.datasets)}, "
             f"{len(dataset)} segments{lent})"
         )
-        with self.timer.stage("policies"):
-            scopes, dims, actions = _policy_data(dataset, shared, config)
-        policy = self.trainer.submit(_policy_job(scopes, actions, dims, config, k, self.threads))
+        with self.timer.stage(POLICIES):
+            scopes, dims, actions = policy_data(dataset, shared, config)
+        policy = self.trainer.submit(
+            policy_job(
+                scopes, actions, dims, config, derive_seed(config.seed, k, _POLICY), self.threads
+            )
+        )
         fit = generator = classifier = None
         negatives = 0
         if config.use_subgoals:
-            with self.timer.stage("samplers"):
-                fit, negatives = _sampler_fit(dataset, shared, scopes, dims, self.groups, config, k)
-            generator, classifier = _submit_sampler(self.trainer, fit, config, k, self.threads)
+            seed = derive_seed(config.seed, k, _SAMPLER)
+            lenders = () if shared is None else shared.segments
+            others = _other_segments(self.groups, dataset, exclude=lenders)
+            with self.timer.stage(SAMPLERS):
+                fit, negatives = sampler_fit(dataset, scopes, dims, others, config, seed)
+            if fit is not None:
+                generator_job, classifier_job = sampler_jobs(fit, config, seed, self.threads)
+                generator = self.trainer.submit(generator_job)
+                if classifier_job is not None:
+                    classifier = self.trainer.submit(classifier_job)
         waiting = _PendingSkill(slot, dataset, policy, fit, generator, classifier)
         stats = SkillStats(dataset.operator.name, len(dataset), _num_samples(dataset), negatives)
         return waiting, stats
@@ -319,142 +335,14 @@ def _given_skill(
     )
 
 
-def _policy_data(
-    dataset: SkillDataset, shared: SharedData | None, config: LearningConfig
-) -> tuple[list[np.ndarray], ScopeDims, list[np.ndarray]]:
-    """(scope trajectories, scope dims, actions) a skill's policy learns from: its own
-    segments, or with ``shared`` (:func:`shared_data`) also those lent by operators with
-    the same effects."""
-    if shared is None:
-        scopes = scope_trajectories(dataset)
-        dims = ScopeDims.from_scopes(scopes, config.change_tolerance, dataset.scope_size)
-        return scopes, dims, [seg.actions for seg in dataset.segments]
-    scopes = [
-        np.stack([s.vec(objs) for s in seg.states])
-        for seg, objs in zip(shared.segments, shared.objects, strict=True)
-    ]
-    dims = ScopeDims.from_scopes(scopes, config.change_tolerance, objects=shared.scope)
-    return scopes, dims, [seg.actions for seg in shared.segments]
-
-
-def _policy_job(
-    scopes: Sequence[np.ndarray],
-    actions: Sequence[np.ndarray],
-    dims: ScopeDims,
-    config: LearningConfig,
-    k: int,
-    threads: int,
-) -> NetworkJob:
-    return NetworkJob(
-        "policies",
-        train_policy,
-        (
-            tuple(scopes),
-            tuple(actions),
-            dims,
-            config.policy,
-            derive_seed(config.seed, k, _POLICY),
-            config.use_subgoals,
-            config.near_goal_scale,
-            config.linear_policy_base,
-        ),
-        threads,
-    )
-
-
-def _sampler_fit(
-    dataset: SkillDataset,
-    shared: SharedData | None,
-    scopes: Sequence[np.ndarray],
-    dims: ScopeDims,
-    groups: Sequence[SegmentGroup],
-    config: LearningConfig,
-    k: int,
-) -> tuple[SamplerFit | None, int]:
-    """The sampler's training data of skill ``k`` (None: nothing to fit) and how many
-    negative examples its classifier gets."""
-    lenders = () if shared is None else shared.segments
-    gen_x, gen_y, cls_data = sampler_training_data(
-        dataset,
-        scopes,
-        dims,
-        _other_segments(groups, dataset, exclude=lenders),
-        config.max_negative_bindings_per_segment,
-        derive_seed(config.seed, k, _SAMPLER),
-    )
-    negatives = int((cls_data[:, -1] == 0).sum())
-    fit = SamplerFit.of(
-        gen_x,
-        gen_y,
-        cls_data,
-        dims,
-        config.generator,
-        config.max_rejection_tries,
-        config.linear_sampler_base,
-        config.novelty_floor if config.refuse_novel_starts else None,
-    )
-    return fit, negatives
-
-
-def _submit_sampler(
-    trainer: _Trainer, fit: SamplerFit | None, config: LearningConfig, k: int, threads: int
-) -> tuple[int | None, int | None]:
-    """Submit the generator and (where it has labels) the classifier of skill ``k``;
-    their job indices. Seeds as ``train_sampler`` gives them: the generator's, then + 1."""
-    if fit is None:
-        return None, None
-    seed = derive_seed(config.seed, k, _SAMPLER)
-    generator = trainer.submit(
-        NetworkJob(
-            "samplers",
-            train_gaussian,
-            (fit.gen_x, fit.gen_target, config.generator, seed),
-            threads,
-        )
-    )
-    if fit.classifier_labels is None:
-        return generator, None
-    classifier = trainer.submit(
-        NetworkJob(
-            "samplers",
-            train_classifier,
-            (fit.classifier_x, fit.classifier_labels, config.classifier, seed + 1),
-            threads,
-        )
-    )
-    return generator, classifier
-
-
 def _assemble(p: _PendingSkill, trained: Sequence[TrainedNetwork], config: LearningConfig) -> Skill:
     """The skill whose networks ``p`` waited for, from the trained networks."""
-    sampler: LearnedSampler | CurrentStateSampler = CurrentStateSampler()
-    if p.fit is not None and p.generator is not None:
-        cls_params = None if p.classifier is None else trained[p.classifier].network
-        sampler = p.fit.assemble(trained[p.generator].network, cls_params)
+    generator = None if p.generator is None else trained[p.generator].network
+    classifier = None if p.classifier is None else trained[p.classifier].network
+    sampler = assemble_sampler(p.fit, generator, classifier)
     return Skill(
         p.dataset.operator, trained[p.policy].network, sampler, _horizon(p.dataset, config)
     )
-
-
-@dataclass(frozen=True, eq=False)
-class NetworkJob:
-    """One network to train: a module-level training function and its arguments (plain
-    arrays and configs), so that a worker process can run it while the demonstrations
-    stay in the parent. A skill's policy, generator and classifier are three jobs: on
-    two cores, eight skills of three unequal networks balance better than eight jobs of
-    one skill each. ``stage``: the learning stage its time counts towards."""
-
-    stage: str
-    train: Callable[..., Any]
-    args: tuple[Any, ...]
-    threads: int  # torch threads, as in the caller
-
-
-@dataclass(frozen=True, eq=False)
-class TrainedNetwork:
-    network: Any  # what ``NetworkJob.train`` returned
-    stage: str
-    seconds: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -467,23 +355,6 @@ class _PendingSkill:
     fit: SamplerFit | None  # None: no sampler to train (CurrentStateSampler)
     generator: int | None
     classifier: int | None
-
-
-def train_network(job: NetworkJob) -> TrainedNetwork:
-    """Train one network. Seeded (by its arguments) and on ``job.threads`` torch
-    threads, so a worker process returns bit-identical weights to the caller's own."""
-    import torch  # heavy; `bpns` commands that learn nothing never load it
-
-    torch.set_num_threads(job.threads)
-    t0 = time.perf_counter()
-    network = job.train(*job.args)
-    return TrainedNetwork(network, job.stage, time.perf_counter() - t0)
-
-
-def _torch_threads() -> int:
-    import torch  # heavy: only when training (see train_network)
-
-    return torch.get_num_threads()
 
 
 class _Trainer:

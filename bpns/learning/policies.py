@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bpns.learning.config import LearningConfig, MLPConfig
+from bpns.learning.config import MLPConfig
 from bpns.learning.operators import SkillDataset
 from bpns.nets.linear import LinearBase
 from bpns.nets.mlp import MLPParams, Regressor, train_regressor
@@ -221,28 +221,3 @@ def train_policy(
     residual = targets if base is None else targets - base(inputs)
     params = train_regressor(inputs, residual, config, seed)
     return LearnedPolicy(dims, params, use_subgoals, near_scale, base)
-
-
-def learn_policy(
-    dataset: SkillDataset,
-    config: LearningConfig,
-    seed: int,
-    scopes: Sequence[np.ndarray] | None = None,
-    dims: ScopeDims | None = None,
-) -> LearnedPolicy:
-    """Behaviour-clone one skill's policy; pass precomputed ``scopes``/``dims`` to share
-    them with sampler learning."""
-    scopes = scope_trajectories(dataset) if scopes is None else scopes
-    if dims is None:
-        dims = ScopeDims.from_scopes(scopes, config.change_tolerance, dataset.scope_size)
-    actions = [seg.actions for seg in dataset.segments]
-    return train_policy(
-        scopes,
-        actions,
-        dims,
-        config.policy,
-        seed,
-        config.use_subgoals,
-        config.near_goal_scale,
-        config.linear_policy_base,
-    )

@@ -31,16 +31,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bpns.learning.config import LearningConfig, MLPConfig
+from bpns.learning.config import MLPConfig
 from bpns.learning.operators import SkillDataset, applicable_bindings
-from bpns.learning.policies import ScopeDims, scope_trajectories
+from bpns.learning.policies import ScopeDims
 from bpns.nets.linear import LinearBase
 from bpns.nets.mlp import (
     BinaryClassifier,
     GaussianRegressor,
     MLPParams,
-    train_classifier,
-    train_gaussian,
 )
 from bpns.structs import NoSubgoal, Object, Segment, State, STRIPSOperator
 
@@ -371,66 +369,3 @@ class SamplerFit:
         return LearnedSampler(
             self.dims, generator, classifier, self.max_tries, self.base, self.novelty
         )
-
-
-def train_sampler(
-    gen_x: np.ndarray,
-    gen_y: np.ndarray,
-    classifier_data: np.ndarray,
-    dims: ScopeDims,
-    generator_config: MLPConfig,
-    classifier_config: MLPConfig,
-    seed: int,
-    max_tries: int = 100,
-    linear_base: bool = False,
-    novelty_floor: float | None = None,
-) -> LearnedSampler | CurrentStateSampler:
-    """Train generator (``seed``) and, if there are negatives, classifier (``seed + 1``).
-    ``linear_base``: the generator learns the residual of a ridge fit (:class:`LinearBase`).
-    ``novelty_floor``: the sampler refuses novel starts (:class:`Novelty`).
-
-    A skill whose scope never changes in the data has nothing to sample: its subgoal is
-    the current scope.
-    """
-    fit = SamplerFit.of(
-        gen_x, gen_y, classifier_data, dims, generator_config, max_tries, linear_base, novelty_floor
-    )
-    if fit is None:
-        return CurrentStateSampler()
-    generator = train_gaussian(fit.gen_x, fit.gen_target, generator_config, seed)
-    classifier = None
-    if fit.classifier_labels is not None:
-        classifier = train_classifier(
-            fit.classifier_x, fit.classifier_labels, classifier_config, seed + 1
-        )
-    return fit.assemble(generator, classifier)
-
-
-def learn_sampler(
-    dataset: SkillDataset,
-    other_segments: Sequence[Segment],
-    config: LearningConfig,
-    seed: int,
-    scopes: Sequence[np.ndarray] | None = None,
-    dims: ScopeDims | None = None,
-) -> LearnedSampler | CurrentStateSampler:
-    """Learn one skill's sampler. ``other_segments``: every segment not in ``dataset``
-    (negatives of kind (b))."""
-    scopes = scope_trajectories(dataset) if scopes is None else scopes
-    if dims is None:
-        dims = ScopeDims.from_scopes(scopes, config.change_tolerance, dataset.scope_size)
-    gen_x, gen_y, cls_data = sampler_training_data(
-        dataset, scopes, dims, other_segments, config.max_negative_bindings_per_segment, seed
-    )
-    return train_sampler(
-        gen_x,
-        gen_y,
-        cls_data,
-        dims,
-        config.generator,
-        config.classifier,
-        seed,
-        config.max_rejection_tries,
-        config.linear_sampler_base,
-        config.novelty_floor if config.refuse_novel_starts else None,
-    )

@@ -5,10 +5,10 @@ import pytest
 import torch
 
 from bpns.learning.config import LearningConfig, MLPConfig
+from bpns.learning.jobs import learn_policy
 from bpns.learning.policies import (
     LearnedPolicy,
     ScopeDims,
-    learn_policy,
     policy_training_data,
     scope_trajectories,
 )

@@ -5,18 +5,18 @@ import pytest
 import torch
 
 from bpns.learning.config import LearningConfig, MLPConfig
+from bpns.learning.jobs import learn_sampler, sampler_jobs, train_network
 from bpns.learning.operators import SkillDataset, learn_operators
 from bpns.learning.partition import partition_segments
 from bpns.learning.policies import ScopeDims, scope_trajectories
 from bpns.learning.samplers import (
     LearnedSampler,
-    context_dims,
-    learn_sampler,
+    SamplerFit,
     sampler_training_data,
 )
 from bpns.learning.segmentation import segment_demonstrations
 from bpns.nets.mlp import MLPParams
-from bpns.structs import GroundAtom, NoSubgoal, Predicate, Segment
+from bpns.structs import GroundAtom, Predicate, Segment
 from tests import toy_learning as toy
 
 B0, B1 = toy.blocks(2)
@@ -197,16 +197,23 @@ def test_linear_base_is_left_out_where_it_does_not_predict_held_out_segments():
     assert LinearBase.fit_if_it_helps(x[:3], x[:3, :2]) is None  # too few to judge
 
 
-def test_generator_with_linear_base_is_saved_loaded_and_its_mean_is_base_plus_network():
-    from bpns.learning.samplers import train_sampler
+def _trained_sampler(gen_x, gen_y, cls_data, dims, net, seed, **fit_args):
+    """The sampler the pipeline's jobs train from these data (bpns.learning.jobs)."""
+    fit = SamplerFit.of(gen_x, gen_y, cls_data, dims, net, **fit_args)
+    config = LearningConfig(generator=net, classifier=net)
+    generator_job, classifier_job = sampler_jobs(fit, config, seed, threads=1)
+    classifier = None if classifier_job is None else train_network(classifier_job).network
+    return fit.assemble(train_network(generator_job).network, classifier)
 
+
+def test_generator_with_linear_base_is_saved_loaded_and_its_mean_is_base_plus_network():
     rng = np.random.default_rng(1)
     gen_x = rng.uniform(-1, 1, size=(40, 2))
     gen_y = gen_x @ np.array([[1.0], [-2.0]]) + 0.5
     dims = ScopeDims(2, np.array([0, 1]), np.array([0]))
     cls_data = np.concatenate((gen_x, gen_y, np.ones((40, 1))), axis=1)
     net = MLPConfig(num_steps=300, batch_size=32)
-    sampler = train_sampler(gen_x, gen_y, cls_data, dims, net, net, 0, linear_base=True)
+    sampler = _trained_sampler(gen_x, gen_y, cls_data, dims, net, 0, linear_base=True)
     assert sampler.base is not None
     mean, _ = sampler.mean_std(np.array([0.3, 0.2]))
     network_mean, _ = sampler._gen.mean_std(np.array([0.3, 0.2]))
@@ -215,14 +222,14 @@ def test_generator_with_linear_base_is_saved_loaded_and_its_mean_is_base_plus_ne
     back = LearnedSampler.from_arrays(sampler.to_arrays())
     assert back.base is not None
     np.testing.assert_array_equal(back.mean_std(np.array([0.3, 0.2]))[0], mean)
-    plain = train_sampler(gen_x, gen_y, cls_data, dims, net, net, 0, linear_base=False)
+    plain = _trained_sampler(gen_x, gen_y, cls_data, dims, net, 0, linear_base=False)
     assert plain.base is None and "linear/w0" not in plain.to_arrays()
 
 
-def test_a_sampler_fit_assembled_from_separately_trained_networks_is_train_samplers():
+def test_sampler_jobs_train_the_generator_on_its_seed_and_the_classifier_on_the_next():
     """Learning trains a sampler's generator and classifier as two jobs, possibly in two
-    processes, and assembles them: the same sampler, bit for bit, as training both here."""
-    from bpns.learning.samplers import SamplerFit, train_sampler
+    processes, and assembles them: bit for bit the networks trained here from the fit
+    with the sampler's seed and that seed + 1."""
     from bpns.nets.mlp import train_classifier, train_gaussian
 
     rng = np.random.default_rng(2)
@@ -232,8 +239,9 @@ def test_a_sampler_fit_assembled_from_separately_trained_networks_is_train_sampl
     labels = (np.arange(40) % 3 != 0).astype(float)  # a third of the rows are negatives
     cls_data = np.concatenate((gen_x, gen_y, labels[:, None]), axis=1)
     net = MLPConfig(num_steps=200, batch_size=32)
-    whole = train_sampler(gen_x, gen_y, cls_data, dims, net, net, 5, 7, True, 0.01)
-    fit = SamplerFit.of(gen_x, gen_y, cls_data, dims, net, 7, True, 0.01)
+    fit_args = {"max_tries": 7, "linear_base": True, "novelty_floor": 0.01}
+    whole = _trained_sampler(gen_x, gen_y, cls_data, dims, net, 5, **fit_args)
+    fit = SamplerFit.of(gen_x, gen_y, cls_data, dims, net, **fit_args)
     assert fit is not None and fit.classifier_labels is not None
     generator = train_gaussian(fit.gen_x, fit.gen_target, net, 5)
     classifier = train_classifier(fit.classifier_x, fit.classifier_labels, net, 6)
@@ -242,51 +250,10 @@ def test_a_sampler_fit_assembled_from_separately_trained_networks_is_train_sampl
     assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
     only_positives = np.concatenate((gen_x, gen_y, np.ones((40, 1))), axis=1)
     assert SamplerFit.of(gen_x, gen_y, only_positives, dims, net).classifier_labels is None
+    assert (
+        sampler_jobs(
+            SamplerFit.of(gen_x, gen_y, only_positives, dims, net), LearningConfig(), 0, 1
+        )[1]
+        is None
+    )  # no negatives: no classifier job
     assert SamplerFit.of(gen_x, gen_y[:, :0], cls_data, dims, net) is None  # nothing to sample
-
-
-def test_a_linear_base_saved_without_an_input_box_loads_unclipped():
-    from bpns.nets.linear import LinearBase
-
-    arrays = {"linear/w0": np.array([[2.0], [0.0]]), "linear/b0": np.array([1.0])}
-    base = LinearBase.from_arrays(arrays, "linear/")
-    np.testing.assert_array_equal(base(np.array([10.0, 3.0])), [21.0])
-
-
-def test_a_skill_refuses_to_start_where_no_demonstration_started(skills):
-    """The pick's block position is context (the pick never moves it); a block far beyond
-    every demonstrated one is a world the skill was never shown, refused without a draw."""
-    sampler = skills.skill("Holding").sampler
-    scope = ScopeDims.scope(sampler.dims, (B0, R))
-    names = [f"{o.name}.{f}" for o in scope for f in o.type.feature_names]
-    context = [names[sampler.dims.state_dims[j]] for j in sampler.novelty.dims]
-    assert "block0.x" in context and "robot.x" not in context
-    far = toy.make_state(1.0, [3.0 + 50.0, 7.5], [5.0, 9.0])
-    with pytest.raises(NoSubgoal):
-        sampler(far, (B0, R), np.random.default_rng(0))
-    # the same draw as before from a demonstrated world: the test consumes no randomness
-    near = toy.make_state(1.0, [3.0, 7.5], [5.0, 9.0])
-    off = LearnedSampler.from_arrays(
-        {k: v for k, v in sampler.to_arrays().items() if not k.startswith("novelty")}
-    )
-    np.testing.assert_array_equal(
-        sampler(near, (B0, R), np.random.default_rng(4)),
-        off(near, (B0, R), np.random.default_rng(4)),
-    )
-    assert off.novelty is None
-    off(far, (B0, R), np.random.default_rng(0))  # switched off: it extrapolates
-
-
-def test_dims_a_skill_moves_are_not_context_even_when_the_start_is_new(skills):
-    sampler = skills.skill("Holding").sampler
-    robot_far = toy.make_state(40.0, [3.0, 7.5], [5.0, 9.0])  # robot x is set by the pick
-    goal = sampler(robot_far, (B0, R), np.random.default_rng(0))
-    assert np.isfinite(goal).all()
-
-
-def test_context_dims_are_those_that_varied_between_starts_and_barely_moved():
-    dims = ScopeDims(3, np.array([0, 1, 2]), np.array([1, 2]))
-    starts = np.array([[0.0, 0.0, 5.0], [1.0, 1.0, 5.0], [2.0, 2.0, 5.0]])
-    moved = np.array([[0.0, 3.0], [0.0, -3.0], [0.05, 0.0]])  # dim 1 still, dim 2 moves
-    # dim 0: varied, never moved; dim 1: varied, moved 0.05 <= 0.1 x 2; dim 2: constant
-    assert context_dims(starts, moved, dims).tolist() == [0, 1]
