@@ -56,7 +56,7 @@ class BilevelPlanning(Approach):
             samples=s.samples_drawn,
             sim_steps=s.sim_steps,
             details=result,
-            explanation=None if result.success else _explanation(result.stats),
+            explanation=None if result.success else planning_explanation(result.stats),
             rollout=_rollout(result, np.asarray(self.env.action_low).size),
         )
 
@@ -75,7 +75,7 @@ class BilevelPlanning(Approach):
             return open_loop(self, task, model, world, rng, timeout)
         deadline = time.monotonic() + timeout
         config = with_timeout(self.config, timeout)
-        planner = ClosedLoopPlanner(self.skills, model, config, execution, _explanation)
+        planner = ClosedLoopPlanner(self.skills, model, config, execution, planning_explanation)
         out = planner.run(world_run(world, task, config, deadline, execution), rng, deadline)
         return closed_loop_solution(out)
 
@@ -121,7 +121,7 @@ def _rollout(result: PlanResult, action_dim: int) -> Rollout | None:
     )
 
 
-def _explanation(stats: PlanningStats) -> dict:
+def planning_explanation(stats: PlanningStats) -> dict:
     """Why planning failed: failures by reason, and the first skeletons step by step."""
     return {
         "abstract_plans": stats.abstract_plans_tried,

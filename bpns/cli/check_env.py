@@ -1,7 +1,9 @@
 """``bpns check-env NAME``: check an environment's contract, one line per violation.
 
 Exit status 0 when the environment keeps the contract, 1 on violations, 2 on bad input
-(an unknown environment name). The checks themselves are :mod:`bpns.workflow.contract`.
+(an unknown environment name). The checks themselves are :mod:`bpns.workflow.contract`;
+``--demo`` also runs the demonstrator and the oracle skills on the first tasks
+(:mod:`bpns.workflow.demo_check`), a line each, and exits 1 if any of them fails.
 """
 
 from __future__ import annotations
@@ -9,8 +11,9 @@ from __future__ import annotations
 import argparse
 import importlib
 
-from bpns.cli.common import UserError, env_by_name, nonnegative, positive
+from bpns.cli.common import UserError, env_by_name, nonnegative, positive, positive_float
 from bpns.workflow.contract import ContractConfig, run_checks
+from bpns.workflow.demo_check import check_demonstrations
 
 HELP = "check an environment's contract, one line per violation"
 
@@ -21,6 +24,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--demos", type=positive, default=2, help="demos to collect (default 2)")
     parser.add_argument("--seed", type=nonnegative, default=0)
     parser.add_argument("--no-gym", action="store_true", help="skip Gymnasium's check_env")
+    parser.add_argument(
+        "--demo",
+        action="store_true",
+        help="also run the demonstrator on the first --tasks train and eval tasks, and the "
+        "oracle skills (where declared) through the planner on those eval tasks: a line "
+        "each, saying which phase failed and why",
+    )
+    parser.add_argument(
+        "--timeout",
+        type=positive_float,
+        default=30.0,
+        help="with --demo: seconds the planner may take per oracle plan (default 30)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -42,6 +58,12 @@ def run(args: argparse.Namespace) -> int:
     checks = len(report.checks)
     if n:
         print(f"{args.name}: {n} violation{'s' * (n != 1)} in {checks} checks")
-        return 1
-    print(f"{args.name}: keeps the contract ({checks} checks passed)")
-    return 0
+    else:
+        print(f"{args.name}: keeps the contract ({checks} checks passed)")
+    failed = 0
+    if args.demo:
+        demos = check_demonstrations(env, args.tasks, args.seed, args.timeout)
+        for line in demos.lines():
+            print(line)
+        failed = demos.failed
+    return 1 if n or failed else 0
