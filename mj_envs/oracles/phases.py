@@ -53,6 +53,7 @@ class PhasedDemonstrator(abc.ABC):
     def __init__(self) -> None:
         self._phases: list[Phase] = []
         self._phase_steps = 0
+        self._planned = 0  # phases in the last plan (to say which one failed)
 
     @abc.abstractmethod
     def plan(self, state: State) -> list[Phase]:
@@ -85,6 +86,7 @@ class PhasedDemonstrator(abc.ABC):
         while True:
             if not self._phases:
                 self._phases = self.plan(state)
+                self._planned = len(self._phases)
                 if not self._phases:
                     return self.idle_action(state)
             action = self._phases[0](state)
@@ -97,7 +99,21 @@ class PhasedDemonstrator(abc.ABC):
             self._phase_steps = 0
 
     def phase_failed(self) -> DemonstrationFailed:
-        """The error for a phase that ran past ``max_phase_steps``: by default it says just
-        that; a subclass that knows what the phase was for names it (the message is what
-        the demonstration run records as the attempt's failure)."""
-        return DemonstrationFailed("a phase of the demonstration did not finish")
+        """The error for a phase that ran past ``max_phase_steps``: by default it names
+        the phase (:func:`phase_name`) and its place in the plan; a subclass that knows
+        what the phase was for may say that instead (the message is what the
+        demonstration run records as the attempt's failure, and what ``bpns demos`` and
+        ``bpns check-env --demo`` print)."""
+        number = self._planned - len(self._phases) + 1
+        return DemonstrationFailed(
+            f"phase {phase_name(self._phases[0])!r} ({number} of {self._planned} in the plan) "
+            f"did not finish within {self.max_phase_steps} actions"
+        )
+
+
+def phase_name(phase: Phase) -> str:
+    """A phase's name for messages: its function's qualified name, with the function that
+    built a closure before a colon (``twist_phases: turn``, ``CoverDemonstrator._cover:
+    phase``)."""
+    name = getattr(phase, "__qualname__", None) or type(phase).__name__
+    return name.replace(".<locals>.", ": ")
