@@ -19,6 +19,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from bpns.env.object_counts import PAPER, EvalSet, ObjectCountError, ObjectCounts
 from bpns.env.perturbations import Perturbation, PerturbationError
 from bpns.env.scene import SceneTrack
 from bpns.errors import BpnsError
@@ -54,6 +55,15 @@ class Capabilities:
                        more (e.g. Coffee's spilled coffee: no cup counts as filled again)?
                        Refinement ends a rollout that reaches one at once instead of
                        simulating out the skill's horizon; None: no state is one.
+    eval_sets:         named eval distributions beyond ``paper`` (the environment's own
+                       eval tasks), as object counts per kind, e.g. ``{"large":
+                       ObjectCounts.of({"button": (5, 8)})}`` (``bpns eval --eval-set``).
+    object_limits:     the inclusive (lo, hi) count of each kind its scenes can hold;
+                       the kinds ``--objects`` may set.
+    with_objects:      ``with_objects(env, counts)``: ``env`` drawing its eval tasks with
+                       ``counts`` (an :class:`ObjectCounts` within ``object_limits``; kinds
+                       it does not name keep their own counts), its train tasks unchanged;
+                       None: the paper set only.
 
     ``observe`` takes the environment because one declaration (a class attribute) serves
     every instance, including the perturbed copies ``perturbed`` returns.
@@ -68,12 +78,19 @@ class Capabilities:
     perturbed: Callable[[Environment, Perturbation], Environment] | None = None
     observe: Callable[[Environment, State], State] | None = None
     dead_end: Callable[[State], bool] | None = None
+    eval_sets: Mapping[str, ObjectCounts] = field(default_factory=dict)
+    object_limits: Mapping[str, tuple[int, int]] = field(default_factory=dict)
+    with_objects: Callable[[Environment, ObjectCounts], Environment] | None = None
 
     def __post_init__(self) -> None:  # read-only: one declaration shared by every instance
         if not 0.0 <= self.demo_noise < float("inf"):
             raise ValueError(f"demo_noise must be finite and >= 0, got {self.demo_noise}")
+        if PAPER in self.eval_sets:
+            raise ValueError(f"eval set {PAPER!r} is the environment's own: do not declare it")
         object.__setattr__(self, "planning_defaults", _frozen(self.planning_defaults))
         object.__setattr__(self, "learning_defaults", _frozen(self.learning_defaults))
+        object.__setattr__(self, "eval_sets", _frozen(self.eval_sets))
+        object.__setattr__(self, "object_limits", _frozen(self.object_limits))
 
     @property
     def has_oracle_skills(self) -> bool:
@@ -204,6 +221,70 @@ def perturbed(env: Environment, spec: Perturbation) -> Environment:
             "(its Capabilities declare no perturbed)"
         )
     return make(env, spec)
+
+
+def eval_set_of(
+    env: Environment, name: str = PAPER, objects: ObjectCounts | None = None
+) -> EvalSet:
+    """The eval set ``name`` with ``objects`` overriding its counts, checked against what
+    ``env`` declares (:class:`ObjectCountError` naming the known sets, the kinds or the
+    limits), so that a bad choice is refused before any task is drawn."""
+    caps = env.capabilities
+    if name != PAPER and name not in caps.eval_sets:
+        known = ", ".join([PAPER, *sorted(caps.eval_sets)])
+        raise ObjectCountError(f"environment {env.name!r} has no eval set {name!r}; known: {known}")
+    chosen = EvalSet(name, objects or ObjectCounts())
+    _check_counts(env, _counts_of(env, chosen))
+    return chosen
+
+
+def _counts_of(env: Environment, eval_set: EvalSet) -> ObjectCounts:
+    named = env.capabilities.eval_sets.get(eval_set.name, ObjectCounts())
+    return named.updated(eval_set.objects)
+
+
+def _check_counts(env: Environment, counts: ObjectCounts) -> None:
+    if not counts:
+        return
+    caps = env.capabilities
+    if caps.with_objects is None:
+        raise ObjectCountError(
+            f"environment {env.name!r} cannot change its object counts (its Capabilities "
+            f"declare no with_objects): only the {PAPER!r} eval set"
+        )
+    limits = caps.object_limits
+    for kind, lo, hi in counts.ranges:
+        if kind not in limits:
+            kinds = ", ".join(sorted(limits)) or "none"
+            raise ObjectCountError(
+                f"environment {env.name!r} has no object kind {kind!r}; kinds: {kinds}"
+            )
+        least, most = limits[kind]
+        if lo < least or hi > most:
+            asked = f"{lo}" if lo == hi else f"{lo}:{hi}"
+            raise ObjectCountError(
+                f"{kind}={asked}: {env.name} scenes hold {least}..{most} {kind} objects"
+            )
+
+
+def eval_environment(
+    env: Environment, eval_set: EvalSet | str = PAPER, objects: ObjectCounts | None = None
+) -> Environment:
+    """The environment eval tasks of ``eval_set`` (a name or an :class:`EvalSet`; with
+    ``objects`` overriding its counts) are drawn from: ``env`` itself for the paper set,
+    else the copy its ``Capabilities.with_objects`` returns. Train tasks are unchanged."""
+    chosen = eval_set if isinstance(eval_set, EvalSet) else EvalSet(eval_set)
+    if objects:
+        chosen = EvalSet(chosen.name, chosen.objects.updated(objects))
+    if chosen.is_paper:
+        return env
+    chosen = eval_set_of(env, chosen.name, chosen.objects)
+    counts = _counts_of(env, chosen)
+    if not counts:  # a named set that declares no counts
+        return env
+    make = env.capabilities.with_objects
+    assert make is not None  # _check_counts refused it otherwise
+    return make(env, counts)
 
 
 def observation_of(env: Environment) -> Callable[[State], State]:
