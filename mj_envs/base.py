@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from bpns.env.environment import Capabilities
+from bpns.env.object_counts import ObjectCounts
 from bpns.env.perturbations import NOMINAL, Perturbation
 from bpns.env.scene import Anchor, SceneTrack, anchors_by_name
 from bpns.errors import BpnsError
@@ -52,6 +53,16 @@ def perturbed(env: MujocoEnv, spec: Perturbation) -> MujocoEnv:
     perturbed model, and ``simulate`` the noise and latency (``Capabilities.perturbed``)."""
     out = copy.copy(env)
     out.perturbation = spec
+    return out
+
+
+def with_objects(env: MujocoEnv, counts: ObjectCounts) -> MujocoEnv:
+    """``env`` drawing its eval tasks with ``counts`` (``Capabilities.with_objects``): a
+    copy, so the environment the paper's tasks come from is untouched; the copy samples
+    its own ``max_objects`` again (the Gym observation grows with the counts)."""
+    out = copy.copy(env)
+    out.__dict__.pop("_max_objects", None)
+    out.object_counts = counts
     return out
 
 
@@ -129,6 +140,8 @@ class MujocoEnv(abc.ABC):
     capabilities: Capabilities = Capabilities(perturbed=perturbed, observe=observe)
     # physics the tasks run under (``perturbed``); mj_envs.perturbation says what changes
     perturbation: Perturbation = NOMINAL
+    # the counts eval tasks are drawn with (``with_objects``); empty: the domain's own
+    object_counts: ObjectCounts = ObjectCounts()
 
     # -- what a domain declares -----------------------------------------------------
     @property
@@ -202,6 +215,18 @@ class MujocoEnv(abc.ABC):
         Geom colours live in the model, not in the simulator state, so a domain that wants
         them to show its state sets them here, from ``world.data``, for every frame.
         """
+
+    def eval_counts(self, kind: str, train: bool) -> tuple[int, int] | None:
+        """The (lo, hi) count of ``kind`` this environment's eval tasks are drawn with
+        (``with_objects``); None for train tasks and when the domain's own count holds,
+        so that its own path draws exactly the random numbers it always drew."""
+        return None if train else self.object_counts.get(kind)
+
+    def most_objects(self, kind: str, own: int) -> int:
+        """The most objects of ``kind`` any task may hold: ``own`` (the domain's own
+        distributions) or more, under ``object_counts``."""
+        counts = self.object_counts.get(kind)
+        return own if counts is None else max(own, counts[1])
 
     max_objects_samples: int = 8  # layouts per stream the default max_objects looks at
 

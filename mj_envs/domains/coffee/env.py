@@ -9,9 +9,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from bpns.env.environment import Capabilities
+from bpns.env.object_counts import ObjectCounts
 from bpns.structs import Object, Predicate, State, Task, Type
 from ik.orientation import rotation_delta, yaw_tilt_from_matrix
-from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed
+from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed, with_objects
 from mj_envs.domains.coffee import scene
 from mj_envs.domains.coffee.demonstrator import CoffeeDemonstrator
 from mj_envs.domains.coffee.rules import (
@@ -21,6 +22,7 @@ from mj_envs.domains.coffee.rules import (
     CUP,
     CUP_FILLED,
     CUP_IDX,
+    CUP_LIMITS,
     CUP_WALL,
     EVAL_CUPS,
     FLOW,
@@ -84,6 +86,9 @@ class CoffeeEnv(MujocoEnv):
         perturbed=perturbed,
         observe=observe,
         dead_end=spilled,
+        eval_sets={"large": ObjectCounts.of({"cup": (4, 6)})},
+        object_limits={"cup": CUP_LIMITS},
+        with_objects=with_objects,
     )
     controller_config = CONTROLLER
 
@@ -120,7 +125,7 @@ class CoffeeEnv(MujocoEnv):
 
     @property
     def max_objects(self) -> dict[str, int]:
-        return {"robot": 1, "pot": 1, "plate": 1, "cup": EVAL_CUPS[1]}
+        return {"robot": 1, "pot": 1, "plate": 1, "cup": self.most_objects("cup", EVAL_CUPS[1])}
 
     # -- actions --------------------------------------------------------------------
     @property
@@ -162,7 +167,7 @@ class CoffeeEnv(MujocoEnv):
 
     # -- tasks ----------------------------------------------------------------------
     def sample_layout(self, rng: np.random.Generator, train: bool) -> TaskLayout:
-        return scene.sample_layout(rng, train)
+        return scene.sample_layout(rng, train, self.eval_counts("cup", train))
 
     # -- physics beyond MuJoCo's ------------------------------------------------------
     def after_step(self, world: World) -> None:

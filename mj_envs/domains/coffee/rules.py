@@ -112,6 +112,11 @@ CUP_GAP = 0.05
 POT_REACH = HANDLE_INNER + HANDLE_LENGTH + 0.005  # the handle's end, from the pot's axis
 ROTATION_RANGE = np.deg2rad(120.0)
 TRAIN_CUPS, EVAL_CUPS = (1, 2), (2, 3)
+# More cups than the paper's three (``--objects cup=N``; the ``large`` set: 4-6) stand in
+# a larger region on the same side, placed one at a time, each centre within the reach
+# the pour needs (the hand holds the pot's handle behind the cup).
+WIDE_CUP_X, WIDE_CUP_Y, CUP_REACH = (0.32, 0.68), (-0.52, -0.15), 0.78
+CUP_LIMITS = (1, 6)
 HORIZON = 1000
 # -- action ------------------------------------------------------------------------------
 MAX_TURN = 0.1  # rad per step, tilt and wrist

@@ -14,6 +14,7 @@ from mj_envs.domains.coffee.rules import (
     CUP_HEIGHT,
     CUP_IDX,
     CUP_RADIUS,
+    CUP_REACH,
     CUP_WALL,
     CUP_X,
     CUP_Y,
@@ -50,6 +51,8 @@ from mj_envs.domains.coffee.rules import (
     SPOUT_TIP,
     TARGET_FRACTION,
     TRAIN_CUPS,
+    WIDE_CUP_X,
+    WIDE_CUP_Y,
 )
 from mj_envs.parts.button import add_latching_button
 from mj_envs.scene import OBJECT_CONAFFINITY, OBJECT_CONTYPE, make_arena, to_xml
@@ -59,14 +62,19 @@ STEEL_RGBA = (0.75, 0.76, 0.8, 1)
 GRIP_RGBA = (0.15, 0.12, 0.1, 1)  # the handle, its ridges and the knob
 
 
-def sample_layout(rng: np.random.Generator, train: bool) -> TaskLayout:
-    """The pot turned up to +-120 deg, the plate with its switch, 1-2 (train) or 2-3 (eval) cups."""
-    n_lo, n_hi = TRAIN_CUPS if train else EVAL_CUPS
+def sample_layout(
+    rng: np.random.Generator, train: bool, cups_range: tuple[int, int] | None = None
+) -> TaskLayout:
+    """The pot turned up to +-120 deg, the plate with its switch, 1-2 (train) or 2-3 (eval) cups.
+
+    ``cups_range``: (lo, hi) cups instead, for eval tasks beyond the paper's; more than
+    three stand in a larger region (:func:`_place_cups`)."""
+    n_lo, n_hi = TRAIN_CUPS if train else (cups_range or EVAL_CUPS)
     n = int(rng.integers(n_lo, n_hi + 1))
     pot_xy = np.array([rng.uniform(*POT_X), rng.uniform(*POT_Y)])
     rotation = float(rng.uniform(-ROTATION_RANGE, ROTATION_RANGE))
     plate_xy = np.array([rng.uniform(*PLATE_X), rng.uniform(*PLATE_Y)])
-    cups = _sample_cups(rng, n, pot_xy)
+    cups = _sample_cups(rng, n, pot_xy) if n <= EVAL_CUPS[1] else _place_cups(rng, n, pot_xy)
 
     arena = make_arena("coffee", domain_userdata=CUP_IDX - DOMAIN_USERDATA_START + n)
     arena.worldbody.find("body", "workspace_focus").pos = (0.5, 0.0, 0.05)
@@ -84,7 +92,7 @@ def sample_layout(rng: np.random.Generator, train: bool) -> TaskLayout:
         xml=to_xml(arena),
         objects=(robot, pot, plate, *cup_objs),
         goal=goal,
-        horizon=HORIZON,
+        horizon=HORIZON * max(n, EVAL_CUPS[1]) // EVAL_CUPS[1],
     )
 
 
@@ -113,6 +121,43 @@ def _sample_cups(rng: np.random.Generator, n: int, pot_xy: np.ndarray) -> list[t
         ):
             return cups
     raise RuntimeError("could not place the cups; widen the region")
+
+
+def _place_cups(rng: np.random.Generator, n: int, pot_xy: np.ndarray) -> list[tuple[float, ...]]:
+    """More cups than the paper's three, in the wider region: one at a time from fresh
+    candidates kept clear of the pot's handle and the cups placed (the rules of
+    :func:`_sample_cups`) and within ``CUP_REACH``; the layout starts again when a cup
+    finds no room. Joint rejection of six cups almost never succeeds."""
+    for _ in range(1_000):
+        cups: list[tuple[float, ...]] = []
+        for _ in range(n):
+            cup = _fitting_cup(rng, cups, pot_xy)
+            if cup is None:
+                break
+            cups.append(cup)
+        if len(cups) == n:
+            return cups
+    raise RuntimeError(f"could not place {n} cups; widen the region")
+
+
+def _fitting_cup(
+    rng: np.random.Generator, cups: list[tuple[float, ...]], pot_xy: np.ndarray
+) -> tuple[float, ...] | None:
+    for _ in range(200):
+        c = (
+            float(rng.uniform(*WIDE_CUP_X)),
+            float(rng.uniform(*WIDE_CUP_Y)),
+            float(rng.uniform(*CUP_RADIUS)),
+            float(rng.uniform(*CUP_HEIGHT)),
+            float(rng.uniform(*TARGET_FRACTION)),
+        )
+        if (
+            np.hypot(c[0], c[1]) <= CUP_REACH
+            and np.hypot(c[0] - pot_xy[0], c[1] - pot_xy[1]) >= POT_REACH + c[2] + CUP_GAP / 2
+            and all(np.hypot(c[0] - b[0], c[1] - b[1]) >= c[2] + b[2] + CUP_GAP for b in cups)
+        ):
+            return c
+    return None
 
 
 def _add_pot(arena, xy: np.ndarray, rotation: float) -> None:

@@ -8,12 +8,14 @@ from collections.abc import Sequence
 import numpy as np
 
 from bpns.env.environment import Capabilities
+from bpns.env.object_counts import ObjectCounts
 from bpns.structs import Object, Predicate, State, Task, Type
-from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed
+from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed, with_objects
 from mj_envs.domains.cover import scene
 from mj_envs.domains.cover.demonstrator import CoverDemonstrator
 from mj_envs.domains.cover.rules import (
     BLOCK,
+    BLOCK_LIMITS,
     COVERS,
     HAND_EMPTY,
     HOLDING,
@@ -21,7 +23,6 @@ from mj_envs.domains.cover.rules import (
     IS_TARGET,
     LINE_X,
     N_BLOCKS,
-    N_TARGETS,
     REGION,
     REGION_X_HALF,
     ROBOT,
@@ -45,6 +46,9 @@ class CoverEnv(MujocoEnv):
         demo_noise=0.05,
         perturbed=perturbed,
         observe=observe,
+        eval_sets={"large": ObjectCounts.of({"block": (3, 4)})},
+        object_limits={"block": BLOCK_LIMITS},
+        with_objects=with_objects,
     )
 
     @property
@@ -65,10 +69,11 @@ class CoverEnv(MujocoEnv):
 
     @property
     def max_objects(self) -> dict[str, int]:
-        return {"robot": 1, "block": N_BLOCKS, "target": N_TARGETS, "region": N_BLOCKS + N_TARGETS}
+        n = self.most_objects("block", N_BLOCKS)
+        return {"robot": 1, "block": n, "target": n, "region": 2 * n}
 
     def sample_layout(self, rng: np.random.Generator, train: bool) -> TaskLayout:
-        return scene.sample_layout(rng, train)
+        return scene.sample_layout(rng, train, self.eval_counts("block", train))
 
     # -- features -------------------------------------------------------------------
     def extract_features(self, world: World, objects: Sequence[Object]) -> dict[Object, np.ndarray]:

@@ -20,6 +20,9 @@ Rules (final, as simulated):
   (|d| <= 2 cm) and a finger command in [-1, 1] (+1 opens, -1 closes at 0.1 m/s).
 * Train and eval tasks come from the same distribution (different seeds); goals hold one
   or two Covers atoms. Horizon 500 steps.
+* Eval tasks with more blocks (``bpns eval --eval-set large``: 3-4 blocks and as many
+  targets; ``--objects block=N``, N in 1..4) lie on a line y in [-0.5, 0.5]; goals hold
+  1..N Covers atoms; the horizon grows to 250 steps per block.
 """
 
 from __future__ import annotations
@@ -38,6 +41,11 @@ REGION_X_HALF = 0.05
 COVER_X_TOL = 0.015
 HORIZON = 500
 N_BLOCKS = N_TARGETS = 2
+# More blocks than the paper's two (``--objects block=N``, the ``large`` set: 3-4) lie on
+# a longer line: four blocks and four landing zones need up to 0.99 m. Its ends stay
+# within the arm's reach (0.71 m from the base) and on the table (|y| <= 0.65).
+WIDE_Y_RANGE = (-0.50, 0.50)
+BLOCK_LIMITS = (1, 4)
 
 ROBOT = Type("robot", ("x", "y", "z", "fingers"))
 BLOCK = Type("block", ("x", "y", "z", "width", "height", "grasped", "on_table"))

@@ -16,30 +16,39 @@ from mj_envs.domains.cover.rules import (
     HORIZON,
     LINE_X,
     N_BLOCKS,
-    N_TARGETS,
     REGION,
     REGION_X_HALF,
     ROBOT,
     TARGET,
     TARGET_REGION_HALF,
     TARGET_WIDTH_RANGE,
+    WIDE_Y_RANGE,
     Y_RANGE,
 )
-from mj_envs.parts.objects import add_free_box, sample_disjoint_intervals
+from mj_envs.parts.objects import add_free_box, sample_disjoint_intervals, spread_intervals
 from mj_envs.scene import make_arena, to_xml
 
 BLOCK_COLOURS = [(0.85, 0.25, 0.2, 1), (0.2, 0.4, 0.85, 1)]
 
 
-def sample_layout(rng: np.random.Generator, train: bool) -> TaskLayout:
-    """Two blocks and two targets at random disjoint spans; goal: one or two Covers."""
-    widths = rng.uniform(*BLOCK_WIDTH_RANGE, size=N_BLOCKS)
-    twidths = rng.uniform(*TARGET_WIDTH_RANGE, size=N_TARGETS)
+def sample_layout(
+    rng: np.random.Generator, train: bool, blocks: tuple[int, int] | None = None
+) -> TaskLayout:
+    """Two blocks and two targets at random disjoint spans; goal: one or two Covers.
+
+    ``blocks``: (lo, hi) blocks (and as many targets) instead, for eval tasks beyond the
+    paper's; up to two they lie on the paper's line and draw as it does."""
+    n = N_BLOCKS if blocks is None else _count(rng, blocks)
+    widths = rng.uniform(*BLOCK_WIDTH_RANGE, size=n)
+    twidths = rng.uniform(*TARGET_WIDTH_RANGE, size=n)
     # Spans that must not overlap: each block, and each target's landing zone.
     landing = BLOCK_WIDTH_RANGE[1] / 2 + 0.01
-    halves = [w / 2 for w in widths] + [landing] * N_TARGETS
-    centres = sample_disjoint_intervals(rng, halves, Y_RANGE, gap=0.015)
-    bys, tys = centres[:N_BLOCKS], centres[N_BLOCKS:]
+    halves = [w / 2 for w in widths] + [landing] * n
+    if n <= N_BLOCKS:
+        centres = sample_disjoint_intervals(rng, halves, Y_RANGE, gap=0.015)
+    else:
+        centres = spread_intervals(rng, halves, WIDE_Y_RANGE, gap=0.015)
+    bys, tys = centres[:n], centres[n:]
 
     arena = make_arena("cover")
     wb = arena.worldbody
@@ -78,16 +87,23 @@ def sample_layout(rng: np.random.Generator, train: bool) -> TaskLayout:
         )
 
     robot = Object("robot", ROBOT)
-    blocks = [Object(f"block{i}", BLOCK) for i in range(N_BLOCKS)]
-    targets = [Object(f"target{i}", TARGET) for i in range(N_TARGETS)]
+    block_objs = [Object(f"block{i}", BLOCK) for i in range(n)]
+    targets = [Object(f"target{i}", TARGET) for i in range(n)]
     regions = [Object(f"region{i}", REGION) for i in range(len(region_spans))]
-    n_goal = int(rng.integers(1, N_BLOCKS + 1))
-    perm = rng.permutation(N_TARGETS)
-    chosen = rng.choice(N_BLOCKS, size=n_goal, replace=False)
-    goal = frozenset(GroundAtom(COVERS, (blocks[b], targets[perm[b]])) for b in chosen)
+    n_goal = int(rng.integers(1, n + 1))
+    perm = rng.permutation(n)
+    chosen = rng.choice(n, size=n_goal, replace=False)
+    goal = frozenset(GroundAtom(COVERS, (block_objs[b], targets[perm[b]])) for b in chosen)
     return TaskLayout(
         xml=to_xml(arena),
-        objects=(robot, *blocks, *targets, *regions),
+        objects=(robot, *block_objs, *targets, *regions),
         goal=goal,
-        horizon=HORIZON,
+        horizon=HORIZON * max(n, N_BLOCKS) // N_BLOCKS,
     )
+
+
+def _count(rng: np.random.Generator, counts: tuple[int, int]) -> int:
+    """A count in ``counts`` (inclusive); a single count draws nothing, so that
+    ``block=2`` draws the paper's tasks."""
+    lo, hi = counts
+    return lo if lo == hi else int(rng.integers(lo, hi + 1))

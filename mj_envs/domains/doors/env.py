@@ -17,6 +17,9 @@ Rules (final, as simulated):
   goal ``InRoom(robot, another random room)``. Horizon 1500 steps, or 350 per door on
   the longest room path of larger grids (on a room map: on the task's shortest room
   path, plus one).
+* **Larger plans.** Eval tasks may come from larger plans (``bpns eval --eval-set large``:
+  sides 5-6; ``--objects grid=N``, N in 2..6): full grids of those sides, or on a room map
+  one of that side holding up to all its cells. Train tasks are unchanged.
 * **Doors.** A leaf (a 5 cm board filling the doorway up to the wall top) on a slide joint
   along the wall: a *pocket door* that slides into the wall (the leaf collides with the
   robot but not with the walls; it slides towards the side where the wall line goes on
@@ -65,9 +68,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from bpns.env.environment import Capabilities
+from bpns.env.object_counts import ObjectCounts
 from bpns.structs import GroundAtom, Object, Predicate, Task, Type
 from ik import ControllerConfig
-from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed
+from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed, with_objects
 from mj_envs.domains.doors.demonstrator import DoorsDemonstrator
 from mj_envs.domains.doors.rules import (
     DOOR,
@@ -87,6 +91,7 @@ from mj_envs.domains.doors.rules import (
     required_angle,
 )
 from mj_envs.domains.doors.scene import (
+    FloorPlan,
     RoomMap,
     build_xml,
     door_name,
@@ -102,6 +107,9 @@ from mj_envs.world import DOMAIN_USERDATA_START, World
 
 MAX_GRID = 5
 STEPS_PER_DOOR = 350
+# ``--objects grid=N``: eval floor plans N rooms on a side (full grids, or room maps of
+# that size); the ``large`` set has 5x5 and 6x6 plans.
+GRID_LIMITS = (2, 6)
 
 
 class DoorsEnv(MujocoEnv):
@@ -117,6 +125,9 @@ class DoorsEnv(MujocoEnv):
         demo_noise=0.05,
         perturbed=perturbed,
         observe=observe,
+        eval_sets={"large": ObjectCounts.of({"grid": (5, 6)})},
+        object_limits={"grid": GRID_LIMITS},
+        with_objects=with_objects,
     )
     base_config = BaseConfig()
     controller_config = ControllerConfig(
@@ -180,18 +191,20 @@ class DoorsEnv(MujocoEnv):
     def max_objects(self) -> dict[str, int]:
         if self.room_map is not None:
             spec = self.room_map
-            return {"robot": 1, "door": spec.max_doors, "room": spec.rooms[1]}
-        n = max(self.grid_sizes)
+            side = self.most_objects("grid", spec.size)
+            rooms = spec.rooms[1] if side == spec.size else side * side
+            return {"robot": 1, "door": max(spec.max_doors, 2 * side * (side - 1)), "room": rooms}
+        n = self.most_objects("grid", max(self.grid_sizes))
         return {"robot": 1, "door": 2 * n * (n - 1), "room": n * n}
 
     # -- tasks ------------------------------------------------------------------------
     def sample_layout(self, rng: np.random.Generator, train: bool) -> TaskLayout:
         if self.room_map is None:
-            plan = sample_plan(rng, self.grid_sizes)
+            plan = self._grid_plan(rng, self.eval_counts("grid", train))
             # the longest room path crosses rows + cols - 2 doors
             doors_on_path = plan.rows + plan.cols - 2
         else:
-            plan = sample_room_map(rng, self.room_map)
+            plan = sample_room_map(rng, self._room_map(rng, self.eval_counts("grid", train)))
             doors_on_path = plan.doors_between(plan.start_room, plan.goal_room) + 1
         n = len(plan.doors)
         xml = build_xml(plan, self.base_config, n)
@@ -209,6 +222,25 @@ class DoorsEnv(MujocoEnv):
                 DOMAIN_USERDATA_START + k: d.target_rot for k, d in enumerate(plan.doors)
             },
         )
+
+    def _grid_plan(self, rng: np.random.Generator, grid: tuple[int, int] | None) -> FloorPlan:
+        """A full grid; sides from ``grid`` (eval counts), else from ``grid_sizes``."""
+        sizes = self.grid_sizes if grid is None else tuple(range(grid[0], grid[1] + 1))
+        return sample_plan(rng, sizes)
+
+    def _room_map(self, rng: np.random.Generator, grid: tuple[int, int] | None) -> RoomMap:
+        """The room map tasks are drawn on: this environment's own, or (eval counts) one
+        ``grid`` cells on a side holding up to all of them; a single side draws nothing,
+        so that the own side draws the own tasks."""
+        spec = self.room_map
+        assert spec is not None
+        if grid is None:
+            return spec
+        side = grid[0] if grid[0] == grid[1] else int(rng.integers(grid[0], grid[1] + 1))
+        if side == spec.size:
+            return spec
+        rooms = (min(spec.rooms[0], side * side), side * side)
+        return RoomMap(size=side, rooms=rooms, door_fraction=spec.door_fraction)
 
     # -- the action: the base is commanded before the arm ----------------------------
     def before_control(self, action: np.ndarray, world: World) -> None:

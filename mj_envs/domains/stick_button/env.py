@@ -9,13 +9,15 @@ from collections.abc import Sequence
 import numpy as np
 
 from bpns.env.environment import Capabilities
+from bpns.env.object_counts import ObjectCounts
 from bpns.structs import Object, Predicate, Task, Type
-from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed
+from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed, with_objects
 from mj_envs.domains.stick_button import scene
 from mj_envs.domains.stick_button.demonstrator import StickButtonDemonstrator
 from mj_envs.domains.stick_button.rules import (
     ABOVE_NO_BUTTON,
     BUTTON,
+    BUTTON_LIMITS,
     CONTROLLER,
     EVAL_BUTTONS,
     GRASPED,
@@ -53,6 +55,9 @@ class StickButtonEnv(MujocoEnv):
         demo_noise=0.05,
         perturbed=perturbed,
         observe=observe,
+        eval_sets={"large": ObjectCounts.of({"button": (5, 8)})},
+        object_limits={"button": BUTTON_LIMITS},
+        with_objects=with_objects,
     )
     controller_config = CONTROLLER
 
@@ -83,10 +88,11 @@ class StickButtonEnv(MujocoEnv):
 
     @property
     def max_objects(self) -> dict[str, int]:
-        return {"robot": 1, "button": EVAL_BUTTONS[1], "stick": 1, "holder": 1}
+        n = self.most_objects("button", EVAL_BUTTONS[1])
+        return {"robot": 1, "button": n, "stick": 1, "holder": 1}
 
     def sample_layout(self, rng: np.random.Generator, train: bool) -> TaskLayout:
-        return scene.sample_layout(rng, train)
+        return scene.sample_layout(rng, train, self.eval_counts("button", train))
 
     # -- physics beyond MuJoCo's: the latch --------------------------------------------
     def after_step(self, world: World) -> None:

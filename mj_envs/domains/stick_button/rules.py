@@ -33,6 +33,9 @@ Rules (final, as simulated):
   (|d| <= 2 cm) and a finger command in [-1, 1] (+1 opens, -1 closes at 0.1 m/s), as in
   Cover. The robot starts at its home pose; the stick (and holder) start on the left or
   right, 38-45 cm from the centre line. Horizon 1000 steps.
+* Eval tasks with more buttons (``bpns eval --eval-set large``: 5-8; ``--objects
+  button=N``, N in 1..8) use the same regions and rules, the buttons placed one at a
+  time; the horizon grows to 250 steps per button.
 """
 
 from __future__ import annotations
@@ -62,6 +65,9 @@ LANE_HALF_WIDTH = 0.08  # |dy| that keeps a button out of a far button's stick l
 # a button just pressed).
 HOME_HAND_XY, HOME_CLEARANCE = (0.463, 0.0), 0.06
 TRAIN_BUTTONS, EVAL_BUTTONS = (1, 2), (3, 4)
+# ``--objects button=N``: up to eight fit the regions with their spacing and lanes (more
+# than four are placed one at a time); the ``large`` set has 5-8.
+BUTTON_LIMITS = (1, 8)
 HORIZON = 1000
 TABLE_HALF = (0.62, 0.65, 0.025)
 TABLE_CENTRE_X = 0.55

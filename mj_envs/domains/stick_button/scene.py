@@ -45,14 +45,19 @@ from mj_envs.parts.objects import add_free_box
 from mj_envs.scene import OBJECT_CONAFFINITY, OBJECT_CONTYPE, make_arena, to_xml
 
 
-def sample_layout(rng: np.random.Generator, train: bool) -> TaskLayout:
-    """1-2 (train) or 3-4 (eval) buttons, near or far, and the stick in its holder."""
-    n_lo, n_hi = TRAIN_BUTTONS if train else EVAL_BUTTONS
+def sample_layout(
+    rng: np.random.Generator, train: bool, buttons: tuple[int, int] | None = None
+) -> TaskLayout:
+    """1-2 (train) or 3-4 (eval) buttons, near or far, and the stick in its holder.
+
+    ``buttons``: (lo, hi) buttons instead, for eval tasks beyond the paper's; more than
+    the paper's four are placed one at a time (:func:`_place_buttons`)."""
+    n_lo, n_hi = TRAIN_BUTTONS if train else (buttons or EVAL_BUTTONS)
     n = int(rng.integers(n_lo, n_hi + 1))
     side = 1.0 if rng.random() < 0.5 else -1.0
     stick_y = side * rng.uniform(*STICK_SIDE_Y)
     back_x = rng.uniform(*STICK_BACK_X)
-    buttons = _sample_buttons(rng, n)
+    points = _sample_buttons(rng, n) if n <= EVAL_BUTTONS[1] else _place_buttons(rng, n)
 
     arena = make_arena("stick_button")
     table = arena.worldbody.find("geom", "table")
@@ -62,7 +67,7 @@ def sample_layout(rng: np.random.Generator, train: bool) -> TaskLayout:
     arena.worldbody.find("camera", "front").pos = (1.9, 0.0, 0.7)
     top = arena.worldbody.find("camera", "top")
     top.pos, top.fovy = (0.6, 0.0, 1.9), 50
-    for i, (bx, by) in enumerate(buttons):
+    for i, (bx, by) in enumerate(points):
         add_latching_button(arena, f"button{i}", bx, by)
     _add_holder_and_stick(arena, back_x, stick_y)
 
@@ -75,7 +80,7 @@ def sample_layout(rng: np.random.Generator, train: bool) -> TaskLayout:
         xml=to_xml(arena),
         objects=(robot, *button_objs, stick, holder),
         goal=goal,
-        horizon=HORIZON,
+        horizon=HORIZON * max(n, EVAL_BUTTONS[1]) // EVAL_BUTTONS[1],
     )
 
 
@@ -98,6 +103,52 @@ def _sample_buttons(rng: np.random.Generator, n: int) -> list[tuple[float, float
         if _layout_ok(pts, far):
             return pts
     raise RuntimeError("could not place the buttons; widen the regions")
+
+
+def _place_buttons(rng: np.random.Generator, n: int) -> list[tuple[float, float]]:
+    """More buttons than the paper's four: one at a time, each far with probability 1/2,
+    from fresh candidates until one keeps every rule of :func:`_layout_ok` with those
+    placed; when neither band has room left (the far lanes fill the near band) the layout
+    starts again. Joint rejection of eight buttons almost never succeeds."""
+    for _ in range(1_000):
+        pts: list[tuple[float, float]] = []
+        far: list[bool] = []
+        for _ in range(n):
+            wants_far = bool(rng.random() < 0.5)
+            for is_far in (wants_far, not wants_far):
+                point = _fitting_point(rng, is_far, pts, far)
+                if point is not None:
+                    pts.append(point)
+                    far.append(is_far)
+                    break
+            else:
+                break
+        if len(pts) == n:
+            return pts
+    raise RuntimeError(f"could not place {n} buttons; widen the regions")
+
+
+def _fitting_point(
+    rng: np.random.Generator, is_far: bool, pts: list[tuple[float, float]], far: list[bool]
+) -> tuple[float, float] | None:
+    for _ in range(200):
+        point = _far_point(rng) if is_far else _near_point(rng)
+        if _layout_ok([*pts, point], np.array([*far, is_far])):
+            return point
+    return None
+
+
+def _far_point(rng: np.random.Generator) -> tuple[float, float]:
+    r = rng.uniform(*FAR_RADIUS)
+    y = rng.uniform(-FAR_Y, FAR_Y)
+    return float(np.sqrt(r * r - y * y)), float(y)
+
+
+def _near_point(rng: np.random.Generator) -> tuple[float, float]:
+    while True:
+        x, y = rng.uniform(*NEAR_X), rng.uniform(-NEAR_Y, NEAR_Y)
+        if np.hypot(x, y) <= NEAR_RADIUS:
+            return float(x), float(y)
 
 
 def _layout_ok(pts: Sequence[tuple[float, float]], far: np.ndarray) -> bool:
