@@ -14,6 +14,8 @@ from tqdm import tqdm
 
 from bpns.approaches import UnknownApproachError, get_approach
 from bpns.data.datasets import not_a_demo_file
+from bpns.env.environment import eval_set_of
+from bpns.env.object_counts import PAPER, EvalSet, ObjectCountError, ObjectCounts
 from bpns.env.registry import PluginError, UnknownEnvironmentError, make_environment
 from bpns.errors import BpnsError
 from bpns.learning.artifacts.learned import load_learned
@@ -156,3 +158,41 @@ def print_lines(record) -> None:
 def task_progress(outcomes, total: int, label: str):
     """A progress bar over an evaluation's task outcomes (``bpns.workflow.evaluate``)."""
     return progress(outcomes, total, label)
+
+
+def add_eval_set_arguments(p: argparse.ArgumentParser) -> None:
+    """``--eval-set`` and ``--objects``: which eval distribution tasks come from
+    (docs/SCALING.md); checked against the environment by :func:`eval_set_from`."""
+    p.add_argument(
+        "--eval-set",
+        default=PAPER,
+        metavar="NAME",
+        help="the eval distribution: paper (default: the environment's own) or one it "
+        "declares, e.g. large (more objects); train tasks are unchanged",
+    )
+    p.add_argument(
+        "--objects",
+        nargs="+",
+        metavar="KIND=N|KIND=LO:HI",
+        default=[],
+        help="eval tasks with these object counts (inclusive ranges), over --eval-set's, "
+        "e.g. button=6 or cup=4:6",
+    )
+
+
+def eval_set_from(args: argparse.Namespace, env) -> EvalSet:
+    """``--eval-set``/``--objects`` checked against ``env`` (a UserError naming the known
+    sets, the kinds or the limits) before any work starts."""
+    try:
+        objects = ObjectCounts.parse(args.objects)
+        chosen = eval_set_of(env, args.eval_set, objects)
+    except ObjectCountError as err:
+        flag = "--objects" if args.objects and args.eval_set in _known_sets(env) else "--eval-set"
+        raise UserError(f"{flag}: {err}") from None
+    if getattr(args, "train", False) and not chosen.is_paper:
+        raise UserError("--eval-set/--objects choose eval tasks: drop them or --train")
+    return chosen
+
+
+def _known_sets(env) -> set[str]:
+    return {PAPER, *env.capabilities.eval_sets}

@@ -11,9 +11,11 @@ from bpns.acting.config import MODES, ExecutionConfig
 from bpns.approaches import ApproachEntry, SkillSource, approach_names
 from bpns.cli.common import (
     UserError,
+    add_eval_set_arguments,
     approach_by_name,
     default_workers,
     env_by_name,
+    eval_set_from,
     learned_in,
     nonnegative,
     path_arg,
@@ -75,6 +77,7 @@ def _add_task_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=nonnegative, default=0, help="seed of the eval task stream")
     p.add_argument("--planner-seed", type=nonnegative, default=0, help="seed of subgoal sampling")
     p.add_argument("--train", action="store_true", help="evaluate on train tasks instead")
+    add_eval_set_arguments(p)
 
 
 def _add_planning_arguments(p: argparse.ArgumentParser) -> None:
@@ -298,6 +301,7 @@ def run(args: argparse.Namespace) -> int:
         perturbation=worlds,
         model=model,
         execution=execution,
+        eval_set=eval_set_from(args, env),
     )
     reports = evaluate_approaches(
         env,

@@ -17,9 +17,11 @@ from bpns.approaches import ApproachEntry, SkillSource, approach_names
 from bpns.baselines.learn import BaselinesConfig
 from bpns.cli.common import (
     UserError,
+    add_eval_set_arguments,
     approach_by_name,
     default_workers,
     env_by_name,
+    eval_set_from,
     nonnegative,
     path_arg,
     positive,
@@ -40,6 +42,7 @@ from bpns.cli.paths import (
 from bpns.data.datasets import DatasetError
 from bpns.data.demos import check_replay
 from bpns.env.environment import Environment
+from bpns.env.object_counts import PAPER_SET, EvalSet
 from bpns.evaluation.evaluate import EvalReport
 from bpns.evaluation.reporting import solved_line
 from bpns.learning import LearnedSkills, LearningConfig, describe
@@ -66,6 +69,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=positive_float, default=60.0, help="seconds per task")
     p.add_argument("--out", type=path_arg, help="output directory (default: outputs/<env>)")
     p.add_argument("--workers", type=positive, default=default_workers())
+    add_eval_set_arguments(p)
     p.add_argument(
         "--approach",
         nargs="+",
@@ -121,6 +125,7 @@ class RunConfig:
     learning: LearningConfig
     baselines: BaselinesConfig | None  # None: no approach asked needs a baseline
     planning: PlanningConfig  # the approaches' base, with the --timeout
+    eval_set: EvalSet = PAPER_SET  # the eval distribution (--eval-set, --objects)
 
     @property
     def names(self) -> list[str]:
@@ -150,6 +155,7 @@ def parse_run(args: argparse.Namespace) -> RunConfig:
         raise UserError(
             f"--baseline-steps applies to the baselines, and none of {', '.join(names)} uses one"
         )
+    eval_set = eval_set_from(args, env)
     planning = planning_config_for(env, timeout=args.timeout)
     learning = learning_config_for(env, seed=args.seed)
     baselines = None
@@ -173,6 +179,7 @@ def parse_run(args: argparse.Namespace) -> RunConfig:
         learning=learning,
         baselines=baselines,
         planning=planning,
+        eval_set=eval_set,
     )
 
 
@@ -244,7 +251,12 @@ def evaluate(config: RunConfig, *, learned: LearnedSkills) -> list[EvalReport]:
     return evaluate_approaches(
         config.env,
         config.names,
-        EvalRequest(num_tasks=config.num_tasks, task_seed=config.seed, workers=config.workers),
+        EvalRequest(
+            num_tasks=config.num_tasks,
+            task_seed=config.seed,
+            workers=config.workers,
+            eval_set=config.eval_set,
+        ),
         config.planning,
         skills_dir=config.skills_dir,
         learned=learned,

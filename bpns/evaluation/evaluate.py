@@ -27,7 +27,8 @@ from bpns.acting.config import CLOSED_LOOP, ExecutionConfig
 from bpns.approaches import Approach, get_approach
 from bpns.approaches import NoOracleSkillsError as NoOracleSkillsError  # re-exported
 from bpns.env.abstraction import abstract
-from bpns.env.environment import Environment, perturbed
+from bpns.env.environment import Environment, eval_environment, perturbed
+from bpns.env.object_counts import PAPER_SET, EvalSet
 from bpns.env.perturbations import NOMINAL, Perturbation
 from bpns.env.registry import make_environment
 from bpns.env.worlds import NOMINAL_MODEL, ModelSpec, WorldDistribution
@@ -54,6 +55,7 @@ class EvalSpec:
     perturbation: Perturbation | WorldDistribution = NOMINAL
     model: ModelSpec = NOMINAL_MODEL  # what the planner's simulator knows of the world
     execution: ExecutionConfig = CLOSED_LOOP  # closed loop with replanning, or open loop
+    eval_set: EvalSet = PAPER_SET  # the eval distribution (named set, object counts)
 
     @property
     def worlds(self) -> WorldDistribution:
@@ -118,11 +120,17 @@ class EvalReport:
     perturbation: Perturbation | WorldDistribution = NOMINAL  # the worlds (EvalSpec's)
     model: ModelSpec = NOMINAL_MODEL
     execution: ExecutionConfig = CLOSED_LOOP
+    eval_set: EvalSet = PAPER_SET  # the eval distribution the tasks came from
 
     @property
     def worlds(self) -> WorldDistribution:
         p = self.perturbation
         return p if isinstance(p, WorldDistribution) else WorldDistribution.of(p)
+
+    def task_environment(self, env: Environment) -> Environment:
+        """``env`` (nominal, as built by name) drawing this report's tasks: every place
+        that rebuilds a task from (index, seed) goes through it."""
+        return eval_environment(env, self.eval_set)
 
     @property
     def mean_replans(self) -> float:
@@ -181,6 +189,8 @@ class EvalReport:
             "label": self.label,
             "task_seed": self.task_seed,
             "train_tasks": self.train_tasks,
+            "eval_set": self.eval_set.name,
+            "objects": self.eval_set.objects.text(),
             "perturbation": _physics_json(self.perturbation),
             "worlds": self.worlds.label(),
             "model": self.model.label(),
@@ -240,10 +250,13 @@ def table_row(report: EvalReport) -> str:
 
 
 def conditions_line(reports: Sequence[EvalReport]) -> str:
-    """``World: moderate; model: nominal; execution: closed-loop`` (of the first report:
-    one evaluation runs every approach under the same conditions)."""
+    """``World: moderate; model: nominal; execution: closed-loop; eval set: large`` (of
+    the first report: one evaluation runs every approach under the same conditions)."""
     r = reports[0]
-    return f"World: {r.worlds.label()}; model: {r.model.label()}; execution: {r.execution.mode}"
+    return (
+        f"World: {r.worlds.label()}; model: {r.model.label()}; execution: {r.execution.mode}; "
+        f"eval set: {r.eval_set.label()}"
+    )
 
 
 def markdown_table(reports: Sequence[EvalReport]) -> str:
@@ -322,7 +335,7 @@ _WORKER: dict[str, Any] = {}
 
 
 def _init_worker(spec: EvalSpec) -> None:
-    base = make_environment(spec.env_name)
+    base = eval_environment(make_environment(spec.env_name), spec.eval_set)
     _WORKER.update(spec=spec, base=base, approaches={})
 
 
@@ -401,4 +414,5 @@ def evaluate(
         perturbation=spec.perturbation,
         model=spec.model,
         execution=spec.execution,
+        eval_set=spec.eval_set,
     )

@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from bpns.atomic import atomic_path
-from bpns.env.environment import Environment, perturbed
+from bpns.env.environment import Environment, eval_environment, perturbed
+from bpns.env.object_counts import EvalSet
 from bpns.env.perturbations import Perturbation
 from bpns.env.registry import make_environment
 from bpns.evaluation.evaluate import EvalReport, TaskOutcome
@@ -30,6 +31,7 @@ def solved_line(report: EvalReport) -> str:
     return (
         f"{report.label}: solved {report.num_solved}/{report.num_tasks} "
         f"{report.env} {kind} tasks"
+        + ("" if report.eval_set.is_paper else f" (eval set: {report.eval_set.label()})")
         + (f" (failures: {report.failures})" if report.failures else "")
     )
 
@@ -170,7 +172,16 @@ def render_longest_solved(
     with make_pool(1) as pool:
         n = result_of(
             pool.submit(
-                _render_task, env.name, outcome.world, seed, train, outcome, camera, video, png
+                _render_task,
+                env.name,
+                outcome.world,
+                seed,
+                train,
+                outcome,
+                camera,
+                video,
+                png,
+                report.eval_set,
             )
         )
     return SolvedVideo(video, png, n, report.label, outcome)
@@ -185,9 +196,11 @@ def _render_task(
     camera: str | None,
     video: Path,
     png: Path,
+    eval_set: EvalSet,
 ) -> int:
-    """Re-simulate ``outcome``'s rollout from its task of the seeded stream and render it."""
-    env = perturbed(make_environment(env_name), physics)
+    """Re-simulate ``outcome``'s rollout from its task of the seeded stream (of
+    ``eval_set``) and render it."""
+    env = perturbed(eval_environment(make_environment(env_name), eval_set), physics)
     task = env.task(outcome.index, seed, train)
     rollout = outcome.rollout if outcome.rollout is not None else Rollout(outcome.actions)
     demo = demonstration_of(env, task, rollout.actions)

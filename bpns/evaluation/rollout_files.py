@@ -5,6 +5,8 @@ reader; ``demo_<i>`` holds task i's initial state, actions, states, features, go
 MJCF), with attributes that say what the rows are:
 
 - root: ``kind`` = ``rollouts``, ``approach``, ``label``, ``task_seed``, ``train_tasks``,
+  ``eval_set`` (JSON of :class:`bpns.env.object_counts.EvalSet`: the eval distribution;
+  files without it came from the paper set),
   ``worlds`` (JSON of :class:`bpns.env.worlds.WorldDistribution`: the worlds the tasks
   were drawn from), ``model`` (JSON of :class:`bpns.env.worlds.ModelSpec`),
   ``execution`` (``closed-loop`` or ``open-loop``) and, when every task met the same
@@ -40,7 +42,8 @@ from bpns.data.datasets import (
     write_demonstrations,
 )
 from bpns.data.demos import ReplayReport, replay
-from bpns.env.environment import Environment, perturbed
+from bpns.env.environment import Environment, eval_environment, perturbed
+from bpns.env.object_counts import PAPER_SET, EvalSet, ObjectCountError
 from bpns.env.perturbations import NOMINAL, Perturbation, PerturbationError
 from bpns.env.worlds import NOMINAL_WORLD, WORLD_MODEL, ModelSpec, WorldDistribution
 from bpns.evaluation.evaluate import EvalReport, TaskOutcome
@@ -66,9 +69,11 @@ def save_rollouts(path: str | os.PathLike, env: Environment, report: EvalReport)
     """Every task of ``report`` with what its approach executed, re-simulated in the
     task's own world, atomically; ``env`` is the nominal environment."""
 
+    tasks_env = report.task_environment(env)
+
     def items() -> Iterator[tuple[Demonstration, dict]]:
         for o in report.outcomes:
-            world = perturbed(env, o.world)
+            world = perturbed(tasks_env, o.world)
             task = world.task(o.index, report.task_seed, report.train_tasks)
             demo = demonstration_of(world, task, _rollout(o).actions)
             yield demo, _outcome_attrs(o)
@@ -82,6 +87,7 @@ def save_rollouts(path: str | os.PathLike, env: Environment, report: EvalReport)
         "worlds": report.worlds.to_json(),
         "model": report.model.to_json(),
         "execution": report.execution.mode,
+        "eval_set": report.eval_set.to_json(),
     }
     if report.worlds.fixed:
         root["perturbation"] = report.worlds.draw(0).to_json()
@@ -133,6 +139,7 @@ class RolloutsFile:
     worlds: WorldDistribution = NOMINAL_WORLD
     model: ModelSpec = WORLD_MODEL
     execution: str = "open-loop"
+    eval_set: EvalSet = PAPER_SET  # the eval distribution its tasks came from
 
     @classmethod
     def read(cls, path: str | os.PathLike) -> RolloutsFile:
@@ -150,7 +157,10 @@ class RolloutsFile:
                 else WorldDistribution.of(perturbation)
             )
             model = ModelSpec.from_json(str(root["model"])) if "model" in root else WORLD_MODEL
-        except (KeyError, TypeError, ValueError, PerturbationError) as err:
+            eval_set = (
+                EvalSet.from_json(str(root["eval_set"])) if "eval_set" in root else PAPER_SET
+            )
+        except (KeyError, TypeError, ValueError, PerturbationError, ObjectCountError) as err:
             raise DatasetError(
                 f"{path}: damaged rollout records: {err}; write it again with `bpns eval --out DIR`"
             ) from None
@@ -172,6 +182,7 @@ class RolloutsFile:
             worlds,
             model,
             str(root.get("execution", "open-loop")),
+            eval_set,
         )
 
     def row(self, task: int) -> RolloutInfo:
@@ -182,8 +193,10 @@ class RolloutsFile:
         raise DatasetError(f"{self.path}: has no rollout of task {task} (tasks: {tasks})")
 
     def environment(self, env: Environment, row: RolloutInfo | None = None) -> Environment:
-        """``env`` under the physics ``row`` ran under (the file's, without a row)."""
-        return perturbed(env, self.perturbation if row is None else row.physics)
+        """``env`` (nominal, built by name) drawing the file's eval set, under the physics
+        ``row`` ran under (the file's, without a row)."""
+        tasks_env = eval_environment(env, self.eval_set)
+        return perturbed(tasks_env, self.perturbation if row is None else row.physics)
 
     def demonstration(self, env: Environment, row: RolloutInfo) -> Demonstration:
         """Row ``row``'s demonstration, loaded into its own world."""

@@ -107,7 +107,7 @@ def _explanation_beside(path: Path, approach: str, task: int) -> Mapping | None:
 def episode_of_outcome(env: Environment, report: EvalReport, outcome: TaskOutcome) -> Episode:
     """``outcome``'s rollout re-simulated (exactly) from its task in the world it ran
     in: what its rollouts file row holds, without reading it back."""
-    world = perturbed(env, outcome.world)
+    world = perturbed(report.task_environment(env), outcome.world)
     task = world.task(outcome.index, report.task_seed, report.train_tasks)
     rollout = outcome.rollout if outcome.rollout is not None else Rollout(outcome.actions)
     return Episode(

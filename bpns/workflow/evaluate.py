@@ -15,6 +15,7 @@ from bpns.acting.config import CLOSED_LOOP, ExecutionConfig
 from bpns.approaches import NoOracleSkillsError, SkillSource, get_approach
 from bpns.baselines.learn import saved_baseline_seconds
 from bpns.env.environment import Environment
+from bpns.env.object_counts import PAPER_SET, EvalSet
 from bpns.env.perturbations import NOMINAL, Perturbation
 from bpns.env.worlds import NOMINAL_MODEL, ModelSpec, WorldDistribution
 from bpns.errors import BpnsError
@@ -48,6 +49,7 @@ class EvalRequest:
     perturbation: Perturbation | WorldDistribution = NOMINAL  # the world, fixed or per task
     model: ModelSpec = NOMINAL_MODEL  # what the planner simulates
     execution: ExecutionConfig = CLOSED_LOOP
+    eval_set: EvalSet = PAPER_SET  # the eval distribution (checked by the caller)
 
 
 def check_approaches(
@@ -101,6 +103,7 @@ def evaluate_approaches(
             perturbation=request.perturbation,
             model=request.model,
             execution=request.execution,
+            eval_set=request.eval_set,
         )
         learning_seconds = None
         if learns and stats is not None and skills_dir is not None:
