@@ -21,6 +21,8 @@ from bpns.cli.common import UserError, path_arg, whole_at_least
 from bpns.cli.paths import check_free_space, check_output_dir
 from bpns.data.datasets import min_demo_bytes
 from bpns.env import registry
+from bpns.env.environment import eval_set_of
+from bpns.env.object_counts import ObjectCountError, ObjectCounts
 from bpns.env.perturbations import PerturbationError, parse_axis
 from bpns.env.registry import EnvironmentDeclarationError, PluginError, environment_names
 from bpns.experiments.aggregate import markdown_table
@@ -85,6 +87,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--perturb`), e.g. friction_scale=1,0.7,0.5; the report draws success vs level",
     )
     parser.add_argument(
+        "--objects-axis",
+        metavar="KIND=N1,N2,...",
+        help="evaluate every eval cell with each count of one kind of object (as `bpns eval "
+        "--objects`), e.g. button=3,4,5,6; the report draws success and time vs count",
+    )
+    parser.add_argument(
         "--worlds",
         nargs="+",
         metavar="WORLD",
@@ -133,6 +141,7 @@ def sweep_config(args: argparse.Namespace) -> SweepConfig:
             axis = parse_axis(args.perturb_axis)
         except PerturbationError as err:
             raise UserError(f"--perturb-axis: {err}") from None
+    objects_axis = _objects_axis(args.objects_axis) if args.objects_axis else None
     try:
         config = PRESETS[args.preset].with_overrides(
             envs=args.env,
@@ -142,6 +151,7 @@ def sweep_config(args: argparse.Namespace) -> SweepConfig:
             eval_tasks=args.tasks,
             timeout=args.timeout,
             perturb_axis=axis,
+            objects_axis=objects_axis,
             worlds=args.worlds,
             executions=args.execution,
             model=args.model,
@@ -226,6 +236,31 @@ def loadable(config: SweepConfig, args: argparse.Namespace):
     return config.with_overrides(envs=tuple(envs), approaches=tuple(approaches)), envs
 
 
+def _objects_axis(text: str) -> tuple[str, tuple[int, ...]]:
+    """``KIND=N1,N2,...`` as (kind, counts); a UserError naming what is wrong."""
+    kind, sep, values = text.partition("=")
+    try:
+        counts = tuple(int(v) for v in values.split(","))
+    except ValueError:
+        counts = ()
+    if not sep or not kind.strip() or not counts:
+        raise UserError(f"--objects-axis: expected KIND=N1,N2,..., got {text!r}")
+    return kind.strip(), counts
+
+
+def check_objects_axis(config: SweepConfig, envs: dict) -> None:
+    """Every count of the object axis is one every swept environment can draw (its
+    kinds and limits), before any cell runs."""
+    for env in envs.values():
+        for text in config.object_levels():
+            if text is None:
+                continue
+            try:
+                eval_set_of(env, objects=ObjectCounts.parse(text))
+            except ObjectCountError as err:
+                raise UserError(f"--objects-axis: {err}") from None
+
+
 def command_line(config: SweepConfig, out: Path, args: argparse.Namespace) -> str:
     """The full command that reproduces ``config`` whatever the preset's defaults become."""
     argv = ["bpns", "experiment", "--preset", config.name, "--out", str(out)]
@@ -235,6 +270,9 @@ def command_line(config: SweepConfig, out: Path, args: argparse.Namespace) -> st
     if config.perturb_axis is not None:
         name, levels = config.perturb_axis
         argv += ["--perturb-axis", f"{name}={','.join(format(v, 'g') for v in levels)}"]
+    if config.objects_axis is not None:
+        kind, counts = config.objects_axis
+        argv += ["--objects-axis", f"{kind}={','.join(map(str, counts))}"]
     if config.worlds:
         argv += ["--worlds", *config.worlds]
     if config.executions:
@@ -260,6 +298,7 @@ def run(args: argparse.Namespace) -> int:
         except BackendError as err:
             raise UserError(str(err)) from None
     config, envs = loadable(sweep_config(args), args)
+    check_objects_axis(config, envs)
     out: Path = args.out or Path("outputs") / "experiments" / config.name
     if args.report_only or args.dry_run:
         if out.exists() and not out.is_dir():

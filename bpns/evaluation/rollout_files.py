@@ -157,9 +157,7 @@ class RolloutsFile:
                 else WorldDistribution.of(perturbation)
             )
             model = ModelSpec.from_json(str(root["model"])) if "model" in root else WORLD_MODEL
-            eval_set = (
-                EvalSet.from_json(str(root["eval_set"])) if "eval_set" in root else PAPER_SET
-            )
+            eval_set = EvalSet.from_json(str(root["eval_set"])) if "eval_set" in root else PAPER_SET
         except (KeyError, TypeError, ValueError, PerturbationError, ObjectCountError) as err:
             raise DatasetError(
                 f"{path}: damaged rollout records: {err}; write it again with `bpns eval --out DIR`"

@@ -15,6 +15,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from bpns.env.object_counts import ObjectCounts
 from bpns.evaluation.intervals import wilson_interval
 from bpns.experiments import approach_info
 
@@ -102,6 +103,7 @@ class Row:
     axis: str | None = None  # the perturbation axis' name
     world: str | None = None  # the swept world (None: not swept)
     execution: str | None = None  # closed-loop / open-loop (None: not swept)
+    axis_of: str = "perturbation"  # what the axis sweeps: "perturbation" or "objects"
 
     @property
     def pooled(self) -> tuple[int, int]:
@@ -150,7 +152,7 @@ class Row:
             "approach": self.approach,
             "label": self.label,
             "demos": self.demos,
-            **({} if self.axis is None else {"perturbation": {self.axis: self.level}}),
+            **({} if self.axis is None else {self.axis_of: {self.axis: self.level}}),
             **({} if self.world is None else {"world": self.world}),
             **({} if self.execution is None else {"execution": self.execution}),
             "pooled_solved": list(self.pooled),
@@ -172,12 +174,12 @@ def aggregate(eval_records: Iterable[dict[str, Any]]) -> list[Row]:
     the order first seen for env, approach, world and execution, then by increasing demo
     count and level; seeds sorted."""
     groups: dict[tuple, list[SeedResult]] = {}
-    axes: dict[tuple, str | None] = {}
+    axes: dict[tuple, tuple[str | None, str]] = {}
     order: dict[str, dict[object, int]] = {"env": {}, "approach": {}, "world": {}, "exec": {}}
     for record in eval_records:
         s = record["settings"]
-        axis = s.get("perturb_axis")
-        level = None if axis is None else s["perturbation"][axis]
+        axis, level = _axis_level(s)
+        axis_of = "objects" if "objects" in s else "perturbation"
         world, execution = s.get("world"), s.get("execution") if "world" in s else None
         if axis is not None:  # a perturbation level is its world; execution is shown
             execution = s.get("execution")
@@ -189,7 +191,7 @@ def aggregate(eval_records: Iterable[dict[str, Any]]) -> list[Row]:
         ):
             order[name].setdefault(value, len(order[name]))
         key = (s["env"], s["approach"], s["demo_count"], level, world, execution)
-        axes[key] = axis
+        axes[key] = (axis, axis_of)
         groups.setdefault(key, []).append(SeedResult.from_record(record))
     keys = sorted(
         groups,
@@ -203,9 +205,24 @@ def aggregate(eval_records: Iterable[dict[str, Any]]) -> list[Row]:
         ),
     )
     return [
-        Row(k[0], k[1], k[2], tuple(sorted(groups[k], key=_seed)), k[3], axes[k], k[4], k[5])
+        Row(
+            *(k[0], k[1], k[2], tuple(sorted(groups[k], key=_seed)), k[3], axes[k][0], k[4], k[5]),
+            axis_of=axes[k][1],
+        )
         for k in keys
     ]
+
+
+def _axis_level(settings: dict[str, Any]) -> tuple[str | None, float | None]:
+    """(the swept axis' name, this cell's value): a perturbation's, or an object kind and
+    its count; (None, None) without an axis."""
+    axis = settings.get("perturb_axis")
+    if axis is not None:
+        return axis, settings["perturbation"][axis]
+    if "objects" in settings:
+        ((kind, count, _),) = ObjectCounts.parse(settings["objects"]).ranges
+        return kind, float(count)
+    return None, None
 
 
 def _seed(result: SeedResult) -> int:

@@ -55,6 +55,7 @@ class Cell:
     world: str | None = None  # eval cells of swept worlds: "moderate", "latency=0,1", ...
     execution: str | None = None  # "closed-loop" or "open-loop" (None: not swept)
     model: str = "nominal"  # what the planner simulates, when worlds are swept
+    objects: str | None = None  # eval cells of an object axis: "button=5" (bpns eval --objects)
 
     @property
     def key(self) -> str:
@@ -69,6 +70,8 @@ class Cell:
                 level += f"-{_slug(self.world or 'nominal')}-{self.execution or 'closed-loop'}"
                 if self.model != "nominal":
                     level += f"-model-{_slug(self.model)}"
+            if self.objects is not None:
+                level += f"-{self.objects.replace('=', '')}"
             return f"{EVAL}/{self.env}-{self.approach}{count}{level}-seed{self.seed}"
         if self.kind == SKILLS:
             return f"{SKILLS}/{self.env}{count}-seed{self.seed}"
@@ -104,6 +107,8 @@ class Cell:
                 s["world"] = self.world
                 s["execution"] = self.execution or "closed-loop"
                 s["model"] = self.model
+            if self.objects is not None:  # (absent: cells stored before keep matching)
+                s["objects"] = self.objects
         return json.loads(json.dumps(s))
 
     def describe(self) -> str:
@@ -120,6 +125,8 @@ class Cell:
             )
         if self.world is not None or self.execution is not None:
             parts.append(f"world {self.world or 'nominal'} {self.execution or 'closed-loop'}")
+        if self.objects is not None:
+            parts.append(self.objects)
         parts.append(f"seed {self.seed}")
         return " ".join(parts)
 
@@ -183,7 +190,8 @@ def _eval_cells(
     config: SweepConfig,
     deps: tuple[str, ...],
 ) -> list[Cell]:
-    """One eval cell per level of the sweep's perturbation axis (one without an axis)."""
+    """One eval cell per level of the sweep's perturbation or object axis (one without
+    an axis)."""
     axis = None if config.perturb_axis is None else config.perturb_axis[0]
     return [
         Cell(
@@ -200,9 +208,11 @@ def _eval_cells(
             world=world,
             execution=execution,
             model=config.model,
+            objects=objects,
         )
         for physics in config.levels()
         for world, execution in config.conditions()
+        for objects in config.object_levels()
     ]
 
 

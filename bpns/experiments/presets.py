@@ -44,6 +44,8 @@ class SweepConfig:
     timeout: float  # seconds of planning per eval task
     # (perturbation name, levels): every eval cell once per level (bpns.env.perturbations)
     perturb_axis: tuple[str, tuple[float, ...]] | None = None
+    # (object kind, counts): every eval cell once per count (``bpns eval --objects``)
+    objects_axis: tuple[str, tuple[int, ...]] | None = None
     # worlds (bpns.env.worlds: "nominal", a preset, or "NAME=SPREAD ...") x executions
     # ("closed-loop", "open-loop"): every eval cell once per pair; () for neither axis
     worlds: tuple[str, ...] = ()
@@ -86,6 +88,16 @@ class SweepConfig:
         self._check_worlds()
         if self.perturb_axis is not None and self.worlds:
             raise SweepConfigError("sweep either a perturbation axis or worlds, not both")
+        self._check_objects_axis()
+
+    def _check_objects_axis(self) -> None:
+        if self.objects_axis is None:
+            return
+        kind, counts = self.objects_axis
+        if not counts or len(set(counts)) != len(counts) or min(counts) < 0:
+            raise SweepConfigError(f"object axis {kind}: empty, repeated or negative counts")
+        if self.perturb_axis is not None or self.worlds:
+            raise SweepConfigError("sweep one axis: objects, a perturbation or worlds")
 
     def _check_worlds(self) -> None:
         for world in self.worlds:
@@ -120,6 +132,22 @@ class SweepConfig:
         name, levels = self.perturb_axis
         return [Perturbation(**{name: level}) for level in levels]
 
+    def object_levels(self) -> list[str | None]:
+        """The object counts of each eval cell, as ``--objects`` texts (None: no axis)."""
+        if self.objects_axis is None:
+            return [None]
+        kind, counts = self.objects_axis
+        return [f"{kind}={n}" for n in counts]
+
+    @property
+    def axis_name(self) -> str | None:
+        """The swept axis the report draws success against (a perturbation or an
+        object kind), None without one."""
+        for axis in (self.perturb_axis, self.objects_axis):
+            if axis is not None:
+                return axis[0]
+        return None
+
     @property
     def max_demos(self) -> int:
         return max(self.demo_counts)
@@ -140,6 +168,8 @@ class SweepConfig:
         d = dataclasses.asdict(self)
         if self.perturb_axis is None:  # (absent: configs stored before keep comparing equal)
             del d["perturb_axis"]
+        if self.objects_axis is None:  # (absent, likewise)
+            del d["objects_axis"]
         if not self.worlds and not self.executions and self.model == "nominal":
             del d["worlds"], d["executions"], d["model"]  # (absent, likewise)
         return d

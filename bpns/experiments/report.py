@@ -42,8 +42,8 @@ def write_report(
     table = markdown_table(rows)
     written: list[Path] = []
     figures = [(FIG_DEMOS, "success vs demonstrations"), (FIG_TIME, "success vs planning time")]
-    if rows and config.perturb_axis is not None:  # the axis' figure instead
-        figures = [(f"success_vs_{config.perturb_axis[0]}", f"success vs {config.perturb_axis[0]}")]
+    if rows and config.axis_name is not None:  # the axis' figure instead
+        figures = [(f"success_vs_{config.axis_name}", f"success vs {config.axis_name}")]
         written += save_figure(success_vs_perturbation(rows), out / figures[0][0])
     elif rows and config.worlds:  # the demos and time figures would mix the worlds
         figures = [(FIG_WORLD, "success by world, closed and open loop")]
@@ -66,6 +66,12 @@ def write_report(
             if config.perturb_axis is None
             else f", under each {config.perturb_axis[0]} of "
             f"{', '.join(format(v, 'g') for v in config.perturb_axis[1])} (`bpns eval --perturb`)"
+        )
+        + (
+            ""
+            if config.objects_axis is None
+            else f", with each count of {config.objects_axis[0]} in "
+            f"{', '.join(map(str, config.objects_axis[1]))} (`bpns eval --objects`)"
         )
         + ". Values are mean ± std over seeds (population std); "
         "times are over solved tasks, nodes created over all tasks; learning time is the "

@@ -17,6 +17,7 @@ from typing import Any
 from bpns.acting.config import ExecutionConfig
 from bpns.atomic import storage_problem
 from bpns.baselines.learn import BaselinesConfig
+from bpns.env.object_counts import PAPER_SET, EvalSet, ObjectCounts
 from bpns.env.perturbations import NOMINAL, Perturbation
 from bpns.env.registry import make_environment
 from bpns.env.worlds import WorldDistribution, parse_model, parse_world
@@ -130,6 +131,7 @@ def _evaluate(job: CellJob) -> dict[str, Any]:
         perturbation=_world_of(cell),
         model=parse_model(cell.model.split()),
         execution=ExecutionConfig.of_mode(cell.execution or "closed-loop"),
+        eval_set=_eval_set_of(cell),
     )
     report = evaluate(spec, cell.eval_tasks, workers=1)
     save_plans(job.output, report)
@@ -155,6 +157,11 @@ def _evaluate(job: CellJob) -> dict[str, Any]:
         "learning_seconds": job.learning_seconds,
         "tasks": tasks,
     }
+
+
+def _eval_set_of(cell: Cell) -> EvalSet:
+    """The eval tasks of a cell: its object counts on an object axis, else the paper's."""
+    return PAPER_SET if cell.objects is None else EvalSet(objects=ObjectCounts.parse(cell.objects))
 
 
 def _world_of(cell: Cell) -> Perturbation | WorldDistribution:
