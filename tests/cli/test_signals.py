@@ -26,6 +26,18 @@ def _bpns(*args: str) -> subprocess.Popen:
     )
 
 
+def _wait_for_workers(proc: subprocess.Popen, seconds: float = 300.0) -> None:
+    """Until ``proc`` has started worker processes (a loaded machine starts them late)."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children")
+        if children.exists() and children.read_text().split():
+            time.sleep(1.0)
+            return
+        time.sleep(0.2)
+    raise AssertionError("the command started no worker process")
+
+
 def _digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
@@ -46,9 +58,9 @@ def test_a_stopped_demos_run_says_so_in_one_line_and_keeps_the_old_file(
     proc = _bpns(
         "demos", "--env", "cover", "-n", "40", "--workers", "2", "--out", str(old), "--overwrite"
     )
-    time.sleep(4.0)  # the worker pool is up and demonstrating
+    _wait_for_workers(proc)  # the worker pool is up and demonstrating
     proc.send_signal(sig)
-    _, err = proc.communicate(timeout=120)
+    _, err = proc.communicate(timeout=600)
     assert proc.returncode == code, err
     assert err.strip().splitlines() == [line], err  # no worker's traceback beneath it
     assert _digest(old) == before
