@@ -33,6 +33,7 @@ from bpns.cli import (
     view,
 )
 from bpns.cli import eval as eval_
+from bpns.cli.common import Terminated
 from bpns.errors import BpnsError
 
 COMMANDS: dict[str, ModuleType] = {
@@ -77,8 +78,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 held.release()
                 raise
             return _error(problem)
-        except Terminated:
-            print("bpns: terminated", file=sys.stderr)
+        except Terminated as stop:
+            hint = f"; {stop}" if str(stop) else ""
+            print(f"bpns: terminated{hint}", file=sys.stderr)
             return 128 + signal.SIGTERM
         except KeyboardInterrupt:
             print("bpns: interrupted", file=sys.stderr)
@@ -88,13 +90,6 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         held.release()
         return code
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM (``kill``, a batch scheduler's stop), raised where the command is so that it
-    unwinds as Ctrl-C does: temporary files removed, worker processes stopped, every
-    finished output kept. Left to its default a SIGTERM killed the process on the spot,
-    and worker processes it had started could outlive it."""
 
 
 @contextlib.contextmanager

@@ -26,6 +26,14 @@ class UserError(BpnsError):
     """Bad input from the user: reported as one line, no traceback."""
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (``kill``, a batch scheduler's stop), raised where the command is so that it
+    unwinds as Ctrl-C does: temporary files removed, worker processes stopped, every
+    finished output kept. Left to its default a SIGTERM killed the process on the spot,
+    and worker processes it had started could outlive it. Its message, if any, is a hint
+    printed after ``bpns: terminated`` (e.g. that a sweep resumes)."""
+
+
 def env_by_name(name: str):
     try:
         return make_environment(name)

@@ -7,17 +7,14 @@ itself lives in :mod:`bpns.experiments`.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import shlex
-import signal
 import sys
 import threading
-from collections.abc import Iterator
 from pathlib import Path
 
 from bpns.acting.config import MODES
 from bpns.approaches import get_approach
-from bpns.cli.common import UserError, path_arg, whole_at_least
+from bpns.cli.common import Terminated, UserError, path_arg, whole_at_least
 from bpns.cli.paths import check_free_space, check_output_dir
 from bpns.data.datasets import min_demo_bytes
 from bpns.env import registry
@@ -343,10 +340,11 @@ def run(args: argparse.Namespace) -> int:
         except BackendError as err:
             raise UserError(str(err)) from None
         try:
-            with _terminate_as_exit():
-                summary = run_sweep(cells, store, backend)
+            summary = run_sweep(cells, store, backend)
         except CellStoreError as err:
             raise UserError(str(err)) from None
+        except Terminated:  # a batch scheduler's stop: finished cells are stored
+            raise Terminated("run the same command again to resume") from None
         write_sweep_file(out / "sweep.json", config, command, summary)
         print(_summary_line(summary), flush=True)
         for key, error in summary.failed.items():
@@ -369,22 +367,6 @@ def _check_demos_fit(cells, finished, envs, out: Path) -> None:
     )
     count = sum(c.count or 0 for c in todo)
     check_free_space(out, needed, "--out", f"{count} demonstrations")
-
-
-@contextlib.contextmanager
-def _terminate_as_exit() -> Iterator[None]:
-    """SIGTERM (a batch scheduler's stop) unwinds like Ctrl-C: running cells are stopped,
-    finished ones are already stored, and the same command resumes."""
-
-    def stop(signum, frame):
-        print("bpns: terminated; run the same command again to resume", file=sys.stderr)
-        raise SystemExit(128 + signum)
-
-    previous = signal.signal(signal.SIGTERM, stop)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 def _summary_line(summary) -> str:
