@@ -15,6 +15,15 @@ import pytest
 from bpns import worker_start
 
 
+def _as_from_a_terminal() -> None:
+    """Ctrl-C's default action, as a shell in a terminal gives it.
+
+    CI may start the suite with SIGINT ignored (a background job of a non-interactive
+    shell); a child inherits that and, as Unix wants, would then never see Ctrl-C.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _bpns(*args: str) -> subprocess.Popen:
     env = {**os.environ, "BPNS_PROGRESS": "0"}
     return subprocess.Popen(
@@ -23,6 +32,7 @@ def _bpns(*args: str) -> subprocess.Popen:
         stderr=subprocess.PIPE,
         text=True,
         env=env,
+        preexec_fn=_as_from_a_terminal,
     )
 
 
@@ -56,9 +66,9 @@ def test_a_stopped_demos_run_says_so_in_one_line_and_keeps_the_old_file(
     old.write_bytes(Path(cover_demo_file).read_bytes())
     before = _digest(old)
     proc = _bpns(
-        "demos", "--env", "cover", "-n", "40", "--workers", "2", "--out", str(old), "--overwrite"
+        "demos", "--env", "cover", "-n", "2000", "--workers", "2", "--out", str(old), "--overwrite"
     )
-    _wait_for_workers(proc)  # the worker pool is up and demonstrating
+    _wait_for_workers(proc)  # the pool is up; 2000 demonstrations take minutes, not seconds
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=600)
     assert proc.returncode == code, err
