@@ -118,6 +118,37 @@ def test_a_pick_that_has_begun_closing_goes_on_closing_through_observation_noise
     assert pick_action(at(0.030), robot, block, goal[1])[3] == -1.0  # closing: keep closing
 
 
+def test_one_close_step_is_enough_for_the_pick_to_keep_closing(cover_env):
+    """One close step narrows the fingers to about 0.038 m before the next commands act.
+    The hysteresis used to wait for 0.035 (two net close steps), and the opening commands
+    of steps where noise put the hand outside the 6 mm test undid the first: under
+    latency and 5 mm of noise the pick hovered open until its horizon."""
+    from mj_envs.domains.cover.behaviours import (
+        CLOSE_TOL,
+        CLOSING_FINGERS,
+        KEEP_CLOSING_TOL,
+        grasp_point,
+        pick_action,
+    )
+
+    state = cover_env.task(0, 0, False).init
+    robot = next(o for o in state.objects if o.type.name == "robot")
+    block = next(o for o in state.objects if o.type.name == "block")
+    goal = grasp_point(state, block, state.get(block, "y"))
+
+    def at(off: float, fingers: float):
+        data = dict(state.data)
+        data[robot] = np.array([goal[0] + off, goal[1], goal[2], fingers])
+        return type(state)(data, state.sim)
+
+    keep = (CLOSE_TOL + KEEP_CLOSING_TOL) / 2  # outside the close test, inside the keep one
+    assert 0.035 < CLOSING_FINGERS < 0.04
+    assert pick_action(at(keep, 0.037), robot, block, goal[1])[3] == -1.0  # keeps closing
+    assert pick_action(at(keep, 0.0395), robot, block, goal[1])[3] == 1.0  # open: not yet
+    far = KEEP_CLOSING_TOL + 0.005  # beyond the keep test: open again
+    assert pick_action(at(far, 0.037), robot, block, goal[1])[3] == 1.0
+
+
 def test_a_pick_whose_fingers_still_open_creeps_up_without_moving_sideways(cover_env):
     """A place ends the moment one pad lets go; the next pick must not rise at full speed
     or travel while a pad may still touch the block just placed (it dragged it off its

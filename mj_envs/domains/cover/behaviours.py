@@ -35,6 +35,13 @@ CLOSE_TOL = 0.006  # close the fingers once the hand is this near the grasp poin
 KEEP_CLOSING_TOL = 0.015  # ... and keep closing while this near once they have narrowed:
 # the hysteresis that stops millimetres of observation noise from flicking the close
 # decision on and off (with 5 mm of noise the 6 mm test alone holds for single steps)
+CLOSING_FINGERS = 0.038  # "narrowed": the hysteresis holds below this opening (m per
+# finger; open is 0.04). One close step moves the fingers' target by 5 mm and the fingers
+# to about 0.038 before the next commands act. Below OPEN_FINGERS (0.035), as it was, the
+# hysteresis waited for two or more net close steps, which the opening commands of the
+# steps where the 6 mm test failed undid first: under latency and noise the pick hovered
+# open until its horizon. Noise on open fingers (0.04) can engage it early too, but only
+# within KEEP_CLOSING_TOL of the grasp point.
 OPENING_RISE = 0.003  # the most a pick rises per step while its fingers still open
 RELEASE_TOL = 0.01  # open once the block touches the table with the hand this near
 # (horizontally). The fingers' target integrates the commands (5 mm a step) and sits at 0
@@ -69,7 +76,8 @@ def pick_action(state: State, robot: Object, block: Object, hand_y: float) -> np
     goal = grasp_point(state, block, hand_y)
     dist = np.linalg.norm(state.data[robot][:3] - goal)
     closing = fingers(state, robot) < OPEN_FINGERS
-    near = dist <= CLOSE_TOL or (closing and dist <= KEEP_CLOSING_TOL)
+    narrowed = fingers(state, robot) < CLOSING_FINGERS
+    near = dist <= CLOSE_TOL or (narrowed and dist <= KEEP_CLOSING_TOL)
     action = funnel_action(state, robot, goal, -1.0 if near else 1.0, FUNNEL_DEADZONE)
     if closing and not near:
         # still opening after a release: creep up, no sideways motion, so a pad that has
