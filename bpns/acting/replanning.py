@@ -288,7 +288,11 @@ class ClosedLoopPlanner:
                 return failed(FailureReason.REPLAN_BUDGET)
             repaired = self._repair(world, steps, needed, rng, deadline, stats)
             if isinstance(repaired, FailureReason):
-                world.event("replan_failed", f"replan {stats.replans} found no plan: {repaired}")
+                world.event(
+                    "replan_failed",
+                    f"replan {stats.replans} found no plan: {repaired}, "
+                    f"from {{{atoms_text(world.atoms())}}}",
+                )
                 return failed(repaired)
             steps, i = repaired, 0
             needed = necessary_atoms([s.op for s in steps], world.task.goal)

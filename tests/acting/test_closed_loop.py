@@ -233,3 +233,31 @@ def test_a_videos_caption_names_why_it_replanned_not_only_that_it_did():
     out = event_captions(["step"] * 12, events, hold=40)
     assert out[0] == "step" and out[4].endswith("Holding(robot, stick) stopped holding")
     assert out[11].endswith("refined the last 1 steps again")
+
+
+class GoodGripOnce(toy.PickSampler):
+    """The first grip is good; every later one grips too far back to reach the button."""
+
+    def __call__(self, state, objs, rng):
+        self.bad_first = 0 if self.calls == 0 else 10**9
+        self.good = 0.5
+        return super().__call__(state, objs, rng)
+
+
+def test_a_replan_that_finds_no_plan_says_from_which_abstract_state():
+    # the stick slips; every grip the replan can draw is too far back: no plan from there,
+    # and the event names the world's atoms a user must explain (what the skills lacked)
+    model, world = toy.ToyStickButton(), SlipOnce()
+    skills = [
+        dataclasses.replace(s, sampler=GoodGripOnce()) if s.operator is toy.PICK_STICK else s
+        for s in toy.skills()
+    ]
+    planner = BilevelPlanning(model, skills, CONFIG)
+    solution = planner.solve_in_world(
+        _far_button_task(), model, world, np.random.default_rng(0), 20.0, ExecutionConfig()
+    )
+    assert not solution.success and world.slipped
+    failed = [e for e in solution.rollout.events if e.kind == "replan_failed"]
+    assert len(failed) == 1
+    assert failed[0].text.startswith("replan 1 found no plan: ")
+    assert "from {HandEmpty(robot)" in failed[0].text and failed[0].text.endswith("}")
