@@ -59,6 +59,7 @@ POUR_TILT_GOAL = POUR_TILT + 0.12
 POUR_TURN = 0.05  # rad per step while pouring: the hand keeps up with the dipping spout
 UNTILT_TURN = 0.06  # back up briskly: the flow stops within a few steps
 MAX_CLOSE_STEPS, EXTRA_CLOSE_STEPS = 25, 3
+PART_OF_FLAG = {"held": "handle", "twisted": "knob"}  # the pot feature a grasp sets
 MAX_PHASE_STEPS = 200
 
 
@@ -182,7 +183,10 @@ def grasp_phases(
     def close(s: State) -> np.ndarray | None:
         closing["steps"] += 1
         if closing["steps"] > MAX_CLOSE_STEPS:
-            raise DemonstrationFailed(f"could not grasp the pot's {flag}")
+            raise DemonstrationFailed(
+                f"could not grasp the pot by its {PART_OF_FLAG.get(flag, flag)} "
+                f"within {MAX_CLOSE_STEPS} close steps"
+            )
         if s.get(pot, flag) > 0.5:
             closing["extra"] += 1
             if closing["extra"] > EXTRA_CLOSE_STEPS:
