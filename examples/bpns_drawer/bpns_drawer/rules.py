@@ -23,14 +23,14 @@ from bpns.structs import Object, Predicate, State, Type
 from mj_envs.parts.articulated import PART_GAP
 
 CUBE_SIDE, CUBE_MASS = 0.04, 0.1
-CABINET_SIZE = (0.2, 0.2, 0.07)  # low enough for the hand's box to pass over its top
+CABINET_SIZE = (0.24, 0.26, 0.07)  # low enough for the hand's box to pass over its top
 WALL = 0.006
-TRAVEL = 0.15
+TRAVEL = 0.19
 FLOOR_Z = 2 * WALL + PART_GAP  # the drawer floor's top face (Drawer.floor_z)
 HANDLE_CLEARANCE = 0.06  # room for the open finger between the bar and the drawer front
-CABINET_X, CABINET_Y = (0.66, 0.70), (-0.12, 0.12)
-CUBE_X, CUBE_Y = (0.36, 0.56), (-0.3, 0.3)
-CUBE_CLEARANCE = 0.18  # cube centre to cabinet centre, along y at least
+CABINET_X, CABINET_Y = (0.70, 0.74), (-0.12, 0.12)
+CUBE_X, CUBE_Y = (0.36, 0.56), (-0.32, 0.32)
+CUBE_CLEARANCE = 0.2  # cube centre to cabinet centre, along y at least
 OPEN_FRACTION, CLOSED_FRACTION = 0.8, 0.05
 HORIZON = 500
 

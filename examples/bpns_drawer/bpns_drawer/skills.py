@@ -28,18 +28,41 @@ from bpns_drawer.rules import (
     ROBOT,
     TRAVEL,
 )
-from mj_envs.oracles.motions import Funnel, grasp_action, move_action, release_action
+from mj_envs.oracles.motions import (
+    Funnel,
+    funnel_action,
+    grasp_action,
+    limit_descent,
+    move_action,
+)
 
-FUNNEL = Funnel(safe_z=0.13)  # travel above the cabinet (7 cm) with a cube in hand
+# travel above the cabinet (7 cm) with a cube in hand; over the goal, a flat 1 cm wide
+# bottom: a cloned policy a few millimetres off its goal still descends instead of
+# hovering where the funnel's slope would send it up again
+FUNNEL = Funnel(safe_z=0.13, deadzone=0.01)
+# a place aims 1 cm below where the cube lands, descends the last 6 cm at a steady 3 mm a
+# step anywhere within 2 cm of its goal, and opens without stopping: its command never
+# fades near the goal (a cloned policy would stall 2 mm above the floor, between
+# "descend" and "stop")
+PLACE_FUNNEL = Funnel(safe_z=0.13, deadzone=0.02)
+PLACE_BELOW, PLACE_STEP = 0.01, 0.003
+HANDLE_CLOSE_TOL = 0.012  # a handle grasp closes this near its grasp point (the bar is
+# caught anywhere between the open fingers; a wide tolerance keeps the close decision
+# away from where the hand comes to rest)
 GRASP_DZ = 0.005  # the grip site this far above a cube's centre or the handle's axis
 SLIDE_STEP = 0.005  # m per step: faster, the drawer's damping pushes the fingers apart
 RELEASE_FRACTION = 0.95  # a pull lets go of the handle once the drawer is this far out
-INSIDE_X = (0.13, 0.165)  # where the cube goes in the open drawer: x beyond the handle,
-INSIDE_Y = 0.04  # and at most this far from it along y (the open fingers stay clear)
+INSIDE_X = (0.155, 0.175)  # where the cube goes in the open drawer: x beyond the handle,
+INSIDE_Y = 0.01  # and at most this far from it along y (the open fingers stay clear)
 
 
-def grasp_policy(state: State, objects: Sequence[Object], subgoal: np.ndarray) -> np.ndarray:
-    """Grasp the handle or the cube with the hand at ``subgoal[:3]``."""
+def handle_policy(state: State, objects: Sequence[Object], subgoal: np.ndarray) -> np.ndarray:
+    """Grasp the handle with the hand at ``subgoal[:3]``."""
+    return grasp_action(state, objects[0], subgoal[:3], FUNNEL, close_tol=HANDLE_CLOSE_TOL)
+
+
+def pick_policy(state: State, objects: Sequence[Object], subgoal: np.ndarray) -> np.ndarray:
+    """Grasp the cube with the hand at ``subgoal[:3]``."""
     return grasp_action(state, objects[0], subgoal[:3], FUNNEL)
 
 
@@ -89,10 +112,16 @@ def close_sampler(state: State, objects: Sequence[Object], rng: np.random.Genera
 
 
 def place_policy(state: State, objects: Sequence[Object], subgoal: np.ndarray) -> np.ndarray:
-    """Carry the cube to ``subgoal[:3]`` over the open drawer, lower it in, let go."""
+    """Carry the cube to ``subgoal[:3]`` over the open drawer and lower it in; once it
+    touches the drawer's floor, let go while still sinking 1 mm a step."""
     robot, cube, drawer = objects
-    landed = state.get(cube, f"in_{drawer.name}") > 0.5
-    return release_action(state, robot, subgoal[:3], landed, FUNNEL)
+    goal = subgoal[:3] - [0.0, 0.0, PLACE_BELOW]
+    f = PLACE_FUNNEL
+    action = funnel_action(state, robot, goal, -1.0, f.safe_z, f.slope, f.band, f.deadzone)
+    action = limit_descent(action, state.get(robot, "z") - goal[2], 0.06, PLACE_STEP)
+    if state.get(cube, f"in_{drawer.name}") > 0.5:
+        action[2:] = max(action[2], -0.001), 1.0
+    return action
 
 
 def place_sampler(state: State, objects: Sequence[Object], rng: np.random.Generator):
@@ -102,7 +131,7 @@ def place_sampler(state: State, objects: Sequence[Object], rng: np.random.Genera
     handle = state.data[drawer][:3]
     sub[0] = handle[0] + rng.uniform(*INSIDE_X)
     sub[1] = handle[1] + rng.uniform(-INSIDE_Y, INSIDE_Y)
-    sub[2] = FLOOR_Z + CUBE_SIDE / 2 + held_above - 0.001  # the cube's bottom 1 mm in
+    sub[2] = FLOOR_Z + CUBE_SIDE / 2 + held_above  # where the cube lands
     return sub
 
 
@@ -144,9 +173,9 @@ CLOSE = _op(
     [(DRAWER_OPEN, _D)],
 )  # fmt: skip
 SKILLS = {
-    GRASP_HANDLE: (grasp_policy, handle_sampler),
+    GRASP_HANDLE: (handle_policy, handle_sampler),
     OPEN: (open_policy, open_sampler),
-    PICK: (grasp_policy, cube_sampler),
+    PICK: (pick_policy, cube_sampler),
     PLACE: (place_policy, place_sampler),
     CLOSE: (close_policy, close_sampler),
 }
