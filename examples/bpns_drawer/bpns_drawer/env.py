@@ -76,12 +76,7 @@ class DrawerEnv(MujocoEnv):
     predicates = PREDICATES
     contact_predicates = CONTACT_PREDICATES
     goal_predicates = frozenset({IN_DRAWER, DRAWER_CLOSED})
-    capabilities = Capabilities(
-        learning_defaults={"linear_policy_base": True},  # see README: the place hovered
-        oracle_skills=oracle_skills,
-        perturbed=perturbed,
-        observe=observe,
-    )
+    capabilities = Capabilities(oracle_skills=oracle_skills, perturbed=perturbed, observe=observe)
 
     def sample_layout(self, rng: np.random.Generator, train: bool) -> TaskLayout:
         arena = make_arena("drawer")
