@@ -3,12 +3,14 @@
 Rules (as simulated):
 
 * A cabinet (``mj_envs.parts.articulated.add_drawer``) stands on the table, its drawer on
-  a damped slide joint that pulls out 15 cm towards the robot, its handle a bar across
+  a damped slide joint that pulls out 19 cm towards the robot, its handle a bar across
   the front. A 4 cm cube (a free body, 0.1 kg) stands on the table beside it.
-* Holding(c): both finger pads touch the cube. HoldingHandle(d): both pads touch the
-  handle bar. HandEmpty(r): neither. OnTable(c): the cube touches the table and is not
-  held. InDrawer(c, d): the cube touches the drawer's floor and is not held (a binary
-  predicate read from the feature ``in_<d>``). These five are contact-related.
+* Holding(c): both finger pads touch the cube. HoldingHandle(d): the fingers are closed
+  to the bar's diameter with its axis between the pads (``env.caught``; the pads'
+  contacts with the bar chatter). HandEmpty(r): neither. OnTable(c): the cube touches
+  the table and is not held. InDrawer(c, d): the cube touches the drawer's floor and is
+  not held (a binary predicate read from the feature ``in_<d>``). These five are
+  contact-related (they mark skill boundaries).
 * DrawerOpen(d): the slide joint is out at least 80 % of its travel. DrawerClosed(d): at
   most 5 %. Both read the joint, not a contact.
 * Action (dx, dy, dz, grip) as in every Panda domain. Goal: InDrawer(cube, drawer) and
