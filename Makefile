@@ -16,8 +16,8 @@ $(STAMP): pyproject.toml examples/bpns_stack/pyproject.toml examples/bpns_drawer
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q torch==2.13.0
 	$(PY) -m pip install -q -e ".[dev,viz,lerobot]"  # the extras too: their tests run
-	$(PY) -m pip install -q --no-deps -e examples/bpns_stack  # the worked examples (docs/NEW_TASK.md)
-	$(PY) -m pip install -q --no-deps -e examples/bpns_drawer
+	$(PY) -m pip install -q --no-deps -e examples/bpns_stack  # the worked example (docs/NEW_TASK.md)
+	$(PY) -m pip install -q --no-deps -e examples/bpns_drawer  # the articulated-part example
 	@touch $(STAMP)
 
 # Headless rendering needs OSMesa; python3-venv is needed for the virtual environment.
