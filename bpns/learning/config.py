@@ -50,6 +50,10 @@ class LearningConfig:
     # The subgoal generator's mean = a ridge-regression map of the start scope + the
     # network's residual (samplers.LinearBase). False: the network alone, as in the paper.
     linear_sampler_base: bool = True
+    # Draw the subgoal's dims with the correlation their residuals had in training
+    # (samplers.NoiseCorrelation): a held block and the hand holding it move together.
+    # False: each dim independently, as in the paper.
+    correlated_subgoal_noise: bool = False
     # The same under the policy (linear.py): commands proportional to the remaining offset,
     # which a few dozen segments do not teach a network near the goal (Cover's place
     # hovered two centimetres above the table). Off by default; domains declare it.

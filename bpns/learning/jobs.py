@@ -145,6 +145,7 @@ def sampler_fit(
         config.max_rejection_tries,
         config.linear_sampler_base,
         config.novelty_floor if config.refuse_novel_starts else None,
+        config.correlated_subgoal_noise,
     )
     return fit, negatives
 

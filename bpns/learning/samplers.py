@@ -17,6 +17,14 @@ valid explanations of the segment and are never used as negatives.
 The generator's mean is a linear map of the start scope plus the network's output,
 which learns the residual (:class:`bpns.nets.linear.LinearBase`;
 ``LearningConfig.linear_sampler_base``).
+
+The paper's generator draws each subgoal dim independently. Dims that move together
+(a held block and the hand holding it) then get independent noise: a place subgoal
+whose block and hand disagree by about 1.4 standard deviations, which the nominal model
+forgives and a noisy world does not. With ``LearningConfig.correlated_subgoal_noise``
+the draw is ``mean + std * (L @ eps)``, ``L`` the Cholesky factor of the correlation of
+the generator's standardised training residuals ``(y - mean(x)) / std(x)``
+(:class:`NoiseCorrelation`).
 Many subgoals are affine in the start state (the hand goes to the button's x and y;
 the stick's tip to the button), and a ridge fit recovers such a map from a few dozen
 segments, where a 2x32 network trained by NLL on them overfits: at 250 Stick Button
@@ -58,8 +66,10 @@ class LearnedSampler:
         max_tries: int = 100,
         base: LinearBase | None = None,
         novelty: Novelty | None = None,
+        correlation: NoiseCorrelation | None = None,
     ) -> None:
         self.dims = dims
+        self.correlation = correlation
         self.generator_params = generator
         self.classifier_params = classifier
         self.max_tries = max_tries
@@ -102,13 +112,16 @@ class LearnedSampler:
     def _draw(
         self, s: np.ndarray, mean: np.ndarray, std: np.ndarray, rng: np.random.Generator
     ) -> np.ndarray:
-        first = mean + std * rng.standard_normal(mean.shape[0])
+        corr = self.correlation
+        eps = rng.standard_normal(mean.shape[0])
+        first = mean + std * (eps if corr is None else corr.mix(eps))
         if self._cls is None or self._cls.prob(np.concatenate((s, first))) > 0.5:
             return first
         if self.max_tries == 1:
             return first
         # The remaining tries in one batch: same random stream as one-by-one draws.
-        rest = mean + std * rng.standard_normal((self.max_tries - 1, mean.shape[0]))
+        eps = rng.standard_normal((self.max_tries - 1, mean.shape[0]))
+        rest = mean + std * (eps if corr is None else corr.mix(eps))
         probs = self._cls.prob(
             np.concatenate((np.broadcast_to(s, (len(rest), s.shape[0])), rest), axis=1)
         )
@@ -137,6 +150,8 @@ class LearnedSampler:
             out.update(self.base.to_arrays("linear/"))
         if self.novelty is not None:
             out.update(self.novelty.to_arrays("novelty/"))
+        if self.correlation is not None:
+            out.update(self.correlation.to_arrays("noise/"))
         return out
 
     @classmethod
@@ -150,6 +165,7 @@ class LearnedSampler:
             int(arrays["max_tries"]),
             LinearBase.from_arrays(arrays, "linear/") if has_base else None,
             Novelty.from_arrays(arrays, "novelty/") if "novelty/dims" in arrays else None,
+            NoiseCorrelation.from_arrays(arrays, "noise/") if "noise/chol" in arrays else None,
         )
 
 
@@ -314,6 +330,53 @@ def context_dims(gen_x: np.ndarray, gen_y: np.ndarray, dims: ScopeDims) -> np.nd
 
 
 @dataclass(frozen=True, eq=False)
+class NoiseCorrelation:
+    """Correlated draws for a Gaussian generator: ``mix(eps) = L @ eps`` with ``L`` the
+    lower Cholesky factor of ``C``, the correlation of the standardised residuals
+    ``r = (y - mu(x)) / sigma(x)`` over the training set, shrunk towards the identity
+    (``C = (1 - SHRINK) corr(r) + SHRINK I``) so that a few dozen segments give a factor
+    that exists and does not trust a spurious correlation fully. Dims whose residuals do
+    not vary keep independent noise. Marginals are unchanged: ``diag(C) = 1``."""
+
+    chol: np.ndarray  # (d, d), lower triangular
+
+    SHRINK = 0.05
+
+    def mix(self, eps: np.ndarray) -> np.ndarray:
+        """``L @ eps`` for one draw ``(d,)`` or a batch ``(n, d)``."""
+        return eps @ self.chol.T
+
+    @classmethod
+    def of(cls, x: np.ndarray, y: np.ndarray, generator: MLPParams) -> NoiseCorrelation | None:
+        """None when there is nothing to correlate (one dim, or fewer than 3 examples)."""
+        n, d = y.shape
+        if d < 2 or n < 3:
+            return None
+        mean, std = GaussianRegressor(generator).mean_std(x)
+        r = (y - mean) / std
+        r = r - r.mean(axis=0)
+        scale = np.sqrt((r * r).mean(axis=0))
+        varies = scale > 1e-9
+        corr = np.eye(d)
+        v = np.flatnonzero(varies)
+        if v.size >= 2:
+            z = r[:, v] / scale[v]
+            corr[np.ix_(v, v)] = (z.T @ z) / n
+        corr = (1.0 - cls.SHRINK) * corr + cls.SHRINK * np.eye(d)
+        return cls(np.linalg.cholesky(corr))
+
+    def to_arrays(self, prefix: str) -> dict[str, np.ndarray]:
+        return {f"{prefix}chol": self.chol}
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str) -> NoiseCorrelation:
+        chol = np.asarray(arrays[f"{prefix}chol"], dtype=np.float64)
+        if chol.ndim != 2 or chol.shape[0] != chol.shape[1] or not np.isfinite(chol).all():
+            raise ValueError(f"{prefix}chol must be a finite square matrix, got {chol.shape}")
+        return cls(chol)
+
+
+@dataclass(frozen=True, eq=False)
 class SamplerFit:
     """A sampler before its networks: what the generator and the classifier are trained
     on, and the parts fitted without them (the ridge base, the novelty test). The two
@@ -328,6 +391,7 @@ class SamplerFit:
     max_tries: int
     base: LinearBase | None
     novelty: Novelty | None
+    correlated: bool = False  # fit a NoiseCorrelation once the generator is trained
 
     @classmethod
     def of(
@@ -340,6 +404,7 @@ class SamplerFit:
         max_tries: int = 100,
         linear_base: bool = False,
         novelty_floor: float | None = None,
+        correlated: bool = False,
     ) -> SamplerFit | None:
         """None for a skill whose scope never changes in the data: it has nothing to
         sample (:class:`CurrentStateSampler`)."""
@@ -363,9 +428,19 @@ class SamplerFit:
             max_tries,
             base,
             novelty,
+            correlated,
         )
 
     def assemble(self, generator: MLPParams, classifier: MLPParams | None) -> LearnedSampler:
+        correlation = None
+        if self.correlated:
+            correlation = NoiseCorrelation.of(self.gen_x, self.gen_target, generator)
         return LearnedSampler(
-            self.dims, generator, classifier, self.max_tries, self.base, self.novelty
+            self.dims,
+            generator,
+            classifier,
+            self.max_tries,
+            self.base,
+            self.novelty,
+            correlation,
         )

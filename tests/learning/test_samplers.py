@@ -257,3 +257,66 @@ def test_sampler_jobs_train_the_generator_on_its_seed_and_the_classifier_on_the_
         is None
     )  # no negatives: no classifier job
     assert SamplerFit.of(gen_x, gen_y[:, :0], cls_data, dims, net) is None  # nothing to sample
+
+
+def _moving_together(n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, ScopeDims]:
+    """A held block and the hand holding it: both move by one random amount (plus a
+    millimetre of their own), whatever the start."""
+    rng = np.random.default_rng(seed)
+    gen_x = rng.uniform(-1, 1, size=(n, 2))
+    shift = rng.normal(0.0, 0.05, size=n)
+    gen_y = np.stack([shift, shift], axis=1) + rng.normal(0.0, 0.001, size=(n, 2))
+    dims = ScopeDims(2, np.array([0, 1]), np.array([0, 1]))
+    cls_data = np.concatenate((gen_x, gen_y, np.ones((n, 1))), axis=1)
+    return gen_x, gen_y, cls_data, dims
+
+
+def test_correlated_noise_keeps_dims_that_moved_together_together():
+    gen_x, gen_y, cls_data, dims = _moving_together(200, seed=0)
+    net = MLPConfig(num_steps=400, batch_size=64)
+    joint = _trained_sampler(gen_x, gen_y, cls_data, dims, net, 0, correlated=True)
+    apart = _trained_sampler(gen_x, gen_y, cls_data, dims, net, 0)
+    assert joint.correlation is not None and apart.correlation is None
+    state = toy.point_state([0.1, -0.2])
+    obj = (toy.POINT_OBJ,)
+
+    def spread(sampler: LearnedSampler) -> tuple[float, float]:
+        rng = np.random.default_rng(7)
+        goals = np.array([sampler(state, obj, rng) for _ in range(400)])
+        return float(np.std(goals[:, 0] - goals[:, 1])), float(np.std(goals[:, 0]))
+
+    joint_gap, joint_marginal = spread(joint)
+    apart_gap, apart_marginal = spread(apart)
+    assert joint_gap < 0.35 * apart_gap  # the two dims disagree far less
+    assert abs(joint_marginal - apart_marginal) < 0.2 * apart_marginal  # same marginals
+
+
+def test_noise_correlation_is_saved_loaded_and_draws_the_same_subgoals():
+    gen_x, gen_y, cls_data, dims = _moving_together(60, seed=1)
+    net = MLPConfig(num_steps=200, batch_size=32)
+    sampler = _trained_sampler(gen_x, gen_y, cls_data, dims, net, 0, correlated=True)
+    arrays = sampler.to_arrays()
+    assert arrays["noise/chol"].shape == (2, 2)
+    back = LearnedSampler.from_arrays(arrays)
+    state = toy.point_state([0.3, 0.3])
+    a = sampler(state, (toy.POINT_OBJ,), np.random.default_rng(4))
+    b = back(state, (toy.POINT_OBJ,), np.random.default_rng(4))
+    np.testing.assert_array_equal(a, b)
+
+
+def test_noise_correlation_leaves_dims_that_moved_apart_nearly_independent():
+    from bpns.learning.samplers import NoiseCorrelation
+
+    rng = np.random.default_rng(2)
+    gen_x = rng.uniform(-1, 1, size=(300, 2))
+    gen_y = rng.normal(0.0, 0.05, size=(300, 2))  # two dims, each its own noise
+    dims = ScopeDims(2, np.array([0, 1]), np.array([0, 1]))
+    cls_data = np.concatenate((gen_x, gen_y, np.ones((300, 1))), axis=1)
+    net = MLPConfig(num_steps=300, batch_size=64)
+    fit = SamplerFit.of(gen_x, gen_y, cls_data, dims, net, correlated=True)
+    generator_job, _ = sampler_jobs(fit, LearningConfig(generator=net), 0, threads=1)
+    corr = NoiseCorrelation.of(gen_x, gen_y, train_network(generator_job).network)
+    assert corr is not None
+    c = corr.chol @ corr.chol.T
+    np.testing.assert_allclose(np.diag(c), 1.0, atol=1e-12)  # marginals unchanged
+    assert abs(c[0, 1]) < 0.15

@@ -121,6 +121,19 @@ def test_no_subgoal_skills_round_trip(tmp_path):
     assert not any("starts with" in line for line in legend)  # not printed, not explained
 
 
+def test_skills_with_correlated_subgoal_noise_round_trip(tmp_path):
+    config = toy.fast_config(steps=50, correlated_subgoal_noise=True)
+    result = learn_skills(toy.demos(6, seed=0), toy.PREDICATES, toy.CONTACT_PREDICATES, config)
+    pick = result.skill("Holding")
+    assert pick.sampler.correlation is not None
+    back = _load(save_skills(result, tmp_path / "s"))
+    assert back.config.correlated_subgoal_noise
+    state = toy.make_state(1.0, [3.0, 7.5], [5.0, 9.0])
+    a = pick.sampler(state, (B0, R), np.random.default_rng(2))
+    b = back.skill("Holding").sampler(state, (B0, R), np.random.default_rng(2))
+    np.testing.assert_array_equal(a, b)
+
+
 def test_describe_lists_every_operator(skills):
     text = describe(skills)
     assert text.startswith("2 skills learned from 30 demonstrations")

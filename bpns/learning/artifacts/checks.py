@@ -41,7 +41,7 @@ _DIMS_KEY = r"dims/(size|state_dims|subgoal_dims|num_objects|objects)"
 _BASE_KEY = r"linear/([wb]0|input_low|input_high)"
 POLICY_KEYS = re.compile(rf"{_DIMS_KEY}|net/{_NET_KEY}|{_BASE_KEY}|use_subgoals|near_scale")
 SAMPLER_KEYS = re.compile(
-    rf"{_DIMS_KEY}|(generator|classifier)/{_NET_KEY}|{_BASE_KEY}|max_tries|novelty/(dims|low|high)"
+    rf"{_DIMS_KEY}|(generator|classifier)/{_NET_KEY}|{_BASE_KEY}|max_tries|novelty/(dims|low|high)|noise/chol"
 )
 INTEGER_KEYS = re.compile(rf"{_DIMS_KEY}|max_tries|use_subgoals|novelty/dims")
 
@@ -308,7 +308,7 @@ def read_npz(path: Path, allowed: re.Pattern[str]) -> dict[str, np.ndarray]:
 def _rank(key: str) -> int:
     """How many dimensions the array saved under ``key`` has."""
     last = key.rsplit("/", 1)[-1]
-    if re.fullmatch(r"w\d+", last):
+    if re.fullmatch(r"w\d+", last) or last == "chol":
         return 2
     if last in ("size", "num_objects", "max_tries", "use_subgoals", "near_scale"):
         return 0
