@@ -98,11 +98,13 @@ def _add_paper_arguments(p: argparse.ArgumentParser) -> None:
         "where the environment declares it, with the network learning the residual)",
     )
     p.add_argument(
-        "--correlated-noise",
-        action="store_true",
-        help="subgoal generators draw their dims with the correlation their training "
-        "residuals had (a held block and the hand holding it move together; default: "
-        "each dim independently, as in the paper)",
+        "--subgoal-noise",
+        choices=("correlated", "independent"),
+        default=None,
+        help="how subgoal generators draw their dims: correlated (with the correlation "
+        "their training residuals had: a held block and the hand holding it move "
+        "together) or independent (the paper); default: the environment's (Cover: "
+        "correlated; the others: independent)",
     )
     p.add_argument(
         "--no-novelty-check",
@@ -218,7 +220,9 @@ def learning_config_from(args: argparse.Namespace, env: Environment) -> Learning
         linear_sampler_base=False if args.no_linear_base else None,
         linear_policy_base=False if args.no_linear_base else None,
         refuse_novel_starts=False if args.no_novelty_check else None,
-        correlated_subgoal_noise=True if args.correlated_noise else None,
+        correlated_subgoal_noise=(
+            None if args.subgoal_noise is None else args.subgoal_noise == "correlated"
+        ),
         settle_steps=args.settle_steps,
         index_names=True if args.index_names else None,
     )

@@ -159,8 +159,9 @@ def test_learning_settings_come_from_the_environment_unless_given(run_dir, tmp_p
         args = build_parser().parse_args(argv)
         return learning_config_from(args, cover_env)
 
-    cover = learned_config()  # Cover declares contact settling, nothing else
+    cover = learned_config()  # Cover declares contact settling and correlated draws
     assert cover["settle_steps"] == 4 and cover["near_goal_scale"] is None
+    assert cover["correlated_subgoal_noise"] is True
     assert cover["anchor_parameters"] is True
     nets = ("policy", "generator", "classifier")
     assert all(cover[n]["input_margin"] == 0.1 for n in nets)
@@ -172,6 +173,8 @@ def test_learning_settings_come_from_the_environment_unless_given(run_dir, tmp_p
     assert config().near_goal_scale is None and config().settle_steps == 4
     assert config("--near-goal-scale", "off").near_goal_scale is None
     assert all(getattr(config("--input-margin", "off"), n).input_margin is None for n in nets)
+    assert config("--subgoal-noise", "independent").correlated_subgoal_noise is False
+    assert config("--subgoal-noise", "correlated").correlated_subgoal_noise is True
 
 
 def test_a_damaged_skills_directory_is_reported_not_raised(run_dir, tmp_path):

@@ -39,10 +39,12 @@ class CoverEnv(MujocoEnv):
     name = "cover"
     # The place policy hovered two centimetres above the table where its commands (a
     # descent proportional to the remaining height) faded in a network trained on 100
-    # demos; an affine base under it keeps them (docs/METHOD.md).
+    # demos; an affine base under it keeps them (docs/METHOD.md). Subgoals are drawn with
+    # correlated noise: a place whose block and hand subgoals disagree (independent draws)
+    # passed in the nominal model and stalled in a noisy world (docs/WORLDS.md).
     capabilities = Capabilities(
         oracle_skills=oracle_skills,
-        learning_defaults={"linear_policy_base": True},
+        learning_defaults={"linear_policy_base": True, "correlated_subgoal_noise": True},
         demo_noise=0.05,
         perturbed=perturbed,
         observe=observe,
