@@ -248,14 +248,17 @@ def robustness_sections() -> list[str]:
             "(`bpns experiment --worlds`)\n\n"
             "The planner plans in the nominal model; every eval task executes in its own "
             "world drawn from the named distribution (docs/WORLDS.md), closed loop "
-            "(monitor and replan) and open loop (the model's plan replayed). Seeds 41-43 "
-            "were never used to tune anything. Each world is paired with the nominal one "
+            "(monitor and replan) and open loop (the model's plan replayed). Coffee, Doors "
+            "and Stick Button on seeds 41-43, never used to tune them; Cover on seeds "
+            "51-53 (41-43 served to debug its oracle and learned place). Each world is "
+            "paired with the nominal one "
             "on the same tasks; success intervals are Wilson 95 % over the seeds' pooled "
             "tasks. Doors was measured after the closed loop learned to keep a deviated "
             "plan's subgoals when they still reach the goal (commit c0e14b3: faster, "
-            "success within noise on Cover and Coffee spot checks), and Cover again after its "
-            "oracle's release and close tests were made robust to observation noise (commit "
-            "77ae91b, which also changes Cover's demonstrations); Coffee and Stick Button "
+            "success within noise on Cover and Coffee spot checks), Cover after its oracle's "
+            "release and close tests were made robust to observation noise (commit 77ae91b, "
+            "which also changes its demonstrations) and its skills draw correlated subgoal "
+            "noise (commit 9fd7178); Coffee and Stick Button "
             "before c0e14b3. None of them meets issue 37's targets yet.\n",
         )
     return out
