@@ -202,8 +202,10 @@ def assemble(out: Path) -> None:
         "The sweeps over worlds come first: they are measured on today's skills. The "
         "environment sections and the sweeps over demonstrations after them were measured "
         "before every approach law's gain went to 0.4 and Cover's and Doors' demonstrations "
-        "took DART noise (commit 9428eaf, for robustness to latency), so their "
-        "demonstrations differ from today's; the nominal rows of the world sweeps are "
+        "took DART noise (commit 9428eaf, for robustness to latency), and Cover's before "
+        "its skills drew correlated subgoal noise (commit 9fd7178), so their "
+        "demonstrations and Cover's skills differ from today's; the nominal rows of the "
+        "world sweeps are "
         "today's nominal numbers on fresh seeds.",
         "",
     ]
