@@ -103,8 +103,8 @@ def _add_paper_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         help="how subgoal generators draw their dims: correlated (with the correlation "
         "their training residuals had: a held block and the hand holding it move "
-        "together) or independent (the paper); default: the environment's (Cover: "
-        "correlated; the others: independent)",
+        "together) or independent (the paper); default: what the environment declares "
+        "in its learning_defaults (independent where it declares nothing)",
     )
     p.add_argument(
         "--no-novelty-check",

@@ -18,6 +18,12 @@ The generator's mean is a linear map of the start scope plus the network's outpu
 which learns the residual (:class:`bpns.nets.linear.LinearBase`;
 ``LearningConfig.linear_sampler_base``).
 
+Many subgoals are affine in the start state (the hand goes to the button's x and y;
+the stick's tip to the button), and a ridge fit recovers such a map from a few dozen
+segments, where a 2x32 network trained by NLL on them overfits: at 250 Stick Button
+demos the hand press from one button to the next (16-33 segments) had its generator's
+held-out hand-y error at 8 mm (p90 5 cm) with a learned std of 0.9 mm.
+
 The paper's generator draws each subgoal dim independently. Dims that move together
 (a held block and the hand holding it) then get independent noise: a place subgoal
 whose block and hand disagree by about 1.4 standard deviations, which the nominal model
@@ -25,11 +31,6 @@ forgives and a noisy world does not. With ``LearningConfig.correlated_subgoal_no
 the draw is ``mean + std * (L @ eps)``, ``L`` the Cholesky factor of the correlation of
 the generator's standardised training residuals ``(y - mean(x)) / std(x)``
 (:class:`NoiseCorrelation`).
-Many subgoals are affine in the start state (the hand goes to the button's x and y;
-the stick's tip to the button), and a ridge fit recovers such a map from a few dozen
-segments, where a 2x32 network trained by NLL on them overfits: at 250 Stick Button
-demos the hand press from one button to the next (16-33 segments) had its generator's
-held-out hand-y error at 8 mm (p90 5 cm) with a learned std of 0.9 mm.
 """
 
 from __future__ import annotations
@@ -68,6 +69,12 @@ class LearnedSampler:
         novelty: Novelty | None = None,
         correlation: NoiseCorrelation | None = None,
     ) -> None:
+        width = len(dims.subgoal_dims)
+        if correlation is not None and correlation.chol.shape != (width, width):
+            raise ValueError(
+                f"noise/chol has shape {correlation.chol.shape}, the sampler draws {width} "
+                f"subgoal dims: expected ({width}, {width})"
+            )
         self.dims = dims
         self.correlation = correlation
         self.generator_params = generator
@@ -112,21 +119,24 @@ class LearnedSampler:
     def _draw(
         self, s: np.ndarray, mean: np.ndarray, std: np.ndarray, rng: np.random.Generator
     ) -> np.ndarray:
-        corr = self.correlation
-        eps = rng.standard_normal(mean.shape[0])
-        first = mean + std * (eps if corr is None else corr.mix(eps))
+        first = mean + std * self._noise(rng, mean.shape)
         if self._cls is None or self._cls.prob(np.concatenate((s, first))) > 0.5:
             return first
         if self.max_tries == 1:
             return first
         # The remaining tries in one batch: same random stream as one-by-one draws.
-        eps = rng.standard_normal((self.max_tries - 1, mean.shape[0]))
-        rest = mean + std * (eps if corr is None else corr.mix(eps))
+        rest = mean + std * self._noise(rng, (self.max_tries - 1, mean.shape[0]))
         probs = self._cls.prob(
             np.concatenate((np.broadcast_to(s, (len(rest), s.shape[0])), rest), axis=1)
         )
         accepted = np.flatnonzero(probs > 0.5)
         return rest[accepted[0]] if accepted.size else rest[-1]
+
+    def _noise(self, rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
+        """Standard normal draws of ``shape`` (last axis: the subgoal dims), correlated
+        where the sampler learnt a :class:`NoiseCorrelation`."""
+        eps = rng.standard_normal(shape)
+        return eps if self.correlation is None else self.correlation.mix(eps)
 
     def accept_probability(
         self, state: State, objects: Sequence[Object], subgoal: np.ndarray

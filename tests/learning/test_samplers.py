@@ -302,6 +302,9 @@ def test_noise_correlation_is_saved_loaded_and_draws_the_same_subgoals():
     a = sampler(state, (toy.POINT_OBJ,), np.random.default_rng(4))
     b = back(state, (toy.POINT_OBJ,), np.random.default_rng(4))
     np.testing.assert_array_equal(a, b)
+    arrays["noise/chol"] = np.eye(3)  # edited by hand: one dim more than the sampler draws
+    with pytest.raises(ValueError, match=r"noise/chol has shape \(3, 3\).*expected \(2, 2\)"):
+        LearnedSampler.from_arrays(arrays)
 
 
 def test_noise_correlation_leaves_dims_that_moved_apart_nearly_independent():
