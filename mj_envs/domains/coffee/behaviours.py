@@ -24,12 +24,10 @@ from bpns.structs import Object, State
 from mj_envs.domains.coffee.rules import (
     CUP,
     FINGERTIP_DROP,
-    FOOT_OFFSET,
     GRIP_FROM_AXIS,
     HANDLE_Z,
     KNOB_HALF_HEIGHT,
     KNOB_Z,
-    PLATE_RADIUS,
     PLATE_TOP,
     POT,
     POUR_TILT,
@@ -53,10 +51,6 @@ TWIST_TOL = np.deg2rad(3.0)
 TWIST_TURN, MAX_KNOB_MISSES = 0.07, 5  # rad per step turning the knob
 APPROACH_CLEARANCE, PRESS_SPEED = 0.008, 0.003
 SLOW_ZONE, SLOW_STEP = 0.05, 0.006
-FINAL_ZONE, FINAL_STEP = 0.02, 0.003  # setting the pot down: two steps of latency
-# overshoot by two steps, and 1.2 cm pressed a light pot onto the plate until it pivoted
-PIVOTED_TILT, PIVOTED_BASE_ABOVE = 0.1, 0.012  # a pot pivoted in the grasp: see set_down
-PLACED_HAND_Z = PLATE_TOP + HANDLE_Z - 0.004  # setting the pot down: 4 mm below standing
 BACK_OFF = 0.04  # after letting go, rise this far at SLOW_STEP
 POUR_ABOVE_RIM = 0.025  # least spout tip height above the rim while pouring
 UPRIGHT_CLEARANCE, CLEARANCE_SLOPE = 0.105, 0.12  # see spout_clearance
@@ -123,25 +117,6 @@ def handle_grasp(state: State, pot: Object, along: float = GRIP_FROM_AXIS) -> np
     rot = state.get(pot, "rotation")
     xy = pot_xy(state, pot) - along * np.array([np.cos(rot), np.sin(rot)])
     return np.array([*xy, base_z(state, pot) + HANDLE_Z])
-
-
-def set_down(state: State, pot: Object, plate: Object) -> bool:
-    """The pot stands on the plate, or its base is on it but tilted in the grasp: a pot
-    pressed further pivots about the handle (a light one in a slippery grasp did, until the
-    skill's horizon), and one let go there drops onto its feet."""
-    if state.get(pot, "on_plate") > 0.5:
-        return True
-    low = state.get(pot, "z") < PLATE_TOP + PIVOTED_BASE_ABOVE
-    off_centre = np.hypot(*(pot_xy(state, pot) - state.data[plate][:2]))
-    over = off_centre < PLATE_RADIUS - FOOT_OFFSET
-    return bool(low and over and state.get(pot, "tilt") > PIVOTED_TILT)
-
-
-def lower_pot(state: State, robot: Object, goal: np.ndarray) -> np.ndarray:
-    """Step toward ``goal`` (the hand's, with the pot in it) ever more slowly near it."""
-    action = slow_near(state, robot, goal, -1.0)
-    height = hand(state, robot)[2] - goal[2]
-    return motions.limit_descent(action, height, FINAL_ZONE, FINAL_STEP)
 
 
 def knob_grasp(state: State, pot: Object) -> np.ndarray:
@@ -224,20 +199,8 @@ def grasp_phases(
     return [travel, descend, close]
 
 
-def release_phases(
-    robot: Object,
-    pot: Object,
-    flag: str,
-    rise_to: float,
-    grasp_point: Callable[[State], np.ndarray],
-) -> list[Phase]:
-    """Open fully, then back up, slowly while the fingers are beside the pot, centred on
-    ``grasp_point`` (where the fingers held it, from the pot's pose).
-
-    Centring matters when the pot shifted as it was let go: rising straight up from where
-    the hand was then drags a pad along the side of a handle ridge, and with high friction
-    that lifts the handle and tips a light pot over (a pot on the plate toppled so).
-    """
+def release_phases(robot: Object, pot: Object, flag: str, rise_to: float) -> list[Phase]:
+    """Open fully, then back straight up, slowly while the fingers are beside the pot."""
     start: dict[str, float] = {}
 
     def release(s: State) -> np.ndarray | None:
@@ -247,7 +210,7 @@ def release_phases(
 
     def back_off(s: State) -> np.ndarray | None:
         z0 = start.setdefault("z", float(hand(s, robot)[2]))
-        goal = np.array([*grasp_point(s)[:2], z0 + BACK_OFF])
+        goal = np.array([*hand(s, robot)[:2], z0 + BACK_OFF])
         if hand(s, robot)[2] >= goal[2] - 0.003:
             return None
         action = move_action(s, robot, goal, 1.0)
@@ -284,8 +247,7 @@ def twist_phases(robot: Object, pot: Object, target: float) -> list[Phase]:
         action[4] = float(np.clip(TURN_GAIN * err, -TWIST_TURN, TWIST_TURN))
         return action
 
-    release = release_phases(robot, pot, "twisted", FREE_Z, lambda s: knob_grasp(s, pot))
-    return [*phases, turn, *release]
+    return phases + [turn] + release_phases(robot, pot, "twisted", FREE_Z)
 
 
 def pick_phases(robot: Object, pot: Object, wait_hot: bool = False) -> list[Phase]:
@@ -325,12 +287,12 @@ def place_phases(robot: Object, pot: Object, plate: Object) -> list[Phase]:
         return move_action(s, robot, goal, -1.0)
 
     def lower(s: State) -> np.ndarray | None:
-        if set_down(s, pot, plate):
+        if s.get(pot, "on_plate") > 0.5:
             return None
-        return lower_pot(s, robot, goal_for(s, PLACED_HAND_Z))
+        goal = goal_for(s, PLATE_TOP + HANDLE_Z - 0.004)
+        return slow_near(s, robot, goal, -1.0)
 
-    release = release_phases(robot, pot, "held", FREE_Z, lambda s: handle_grasp(s, pot))
-    return [carry, lower, *release]
+    return [carry, lower] + release_phases(robot, pot, "held", FREE_Z)
 
 
 def press_phases(robot: Object, plate: Object) -> list[Phase]:

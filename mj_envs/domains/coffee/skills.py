@@ -32,7 +32,6 @@ from bpns.structs import NoSubgoal, Object, Skill, State, Variable
 from mj_envs.domains.coffee.behaviours import (
     APPROACH_CLEARANCE,
     FREE_Z,
-    PLACED_HAND_Z,
     POS_TOL,
     POUR_TILT_GOAL,
     POUR_TURN,
@@ -48,10 +47,8 @@ from mj_envs.domains.coffee.behaviours import (
     handle_grasp,
     knob_grasp,
     knob_wrist,
-    lower_pot,
     move_action,
     pour_step,
-    set_down,
     slow_near,
     spout,
     spout_height,
@@ -64,11 +61,13 @@ from mj_envs.domains.coffee.rules import (
     FINGERTIP_DROP,
     HAND_EMPTY,
     HANDLE_RULE,
+    HANDLE_Z,
     HOLDING,
     KNOB_Z,
     NOT_ABOVE_CUP,
     ON_TABLE,
     PLATE,
+    PLATE_TOP,
     POT,
     POT_ABOVE_CUP,
     POT_HOT,
@@ -168,27 +167,24 @@ def _open_in_place() -> np.ndarray:
     return np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
 
 
-def _grasp_point_near(s: State, robot: Object, pot: Object) -> np.ndarray | None:
-    """The grasp point (xy) of the handle or knob the hand is low at, where fingers that
-    are not fully open could snag the pot when moving off; None elsewhere."""
+def _near_pot(s: State, robot: Object, pot: Object) -> bool:
+    """The hand is low at the pot's handle or knob (where fingers that are not fully open
+    could snag it when moving off)."""
     h = hand(s, robot)
     if h[2] > s.get(pot, "z") + KNOB_Z + 0.05:
-        return None
-    points = (np.array([s.get(pot, "x"), s.get(pot, "y")]), handle_grasp(s, pot)[:2])
-    nearest = min(points, key=lambda xy: float(np.linalg.norm(h[:2] - xy)))
-    return nearest if np.linalg.norm(h[:2] - nearest) < NEAR_GRASP else None
+        return False
+    knob = np.array([s.get(pot, "x"), s.get(pot, "y")])
+    handle = handle_grasp(s, pot)[:2]
+    return bool(min(np.linalg.norm(h[:2] - knob), np.linalg.norm(h[:2] - handle)) < NEAR_GRASP)
 
 
 def _clear_of_pot(s: State, robot: Object, pot: Object) -> np.ndarray | None:
-    """An empty hand low beside the pot opens fully, then backs up slowly, centred on
-    the grasp point: a pot that shifted as it was let go would otherwise have a pad
-    dragging up a handle ridge, which tips it over (see release_phases)."""
-    point = _grasp_point_near(s, robot, pot)
-    if point is None:
+    """An empty hand low beside the pot opens fully, then backs straight up slowly."""
+    if not _near_pot(s, robot, pot):
         return None
     if s.get(robot, "fingers") < OPEN:
         return _open_in_place()
-    goal = np.array([*point, FREE_Z])
+    goal = np.array([*hand(s, robot)[:2], FREE_Z])
     action = move_action(s, robot, goal, 1.0)
     action[2] = min(action[2], SLOW_STEP)
     return action
@@ -295,8 +291,8 @@ class PlacePotOnPlatePolicy:
     """Carry the pot over the subgoal's place on the plate, lower it, let go."""
 
     def __call__(self, state: State, objects: Sequence[Object], subgoal: np.ndarray) -> np.ndarray:
-        robot, pot, plate = objects[0], objects[1], objects[2]
-        if set_down(state, pot, plate):
+        robot, pot = objects[0], objects[1]
+        if state.get(pot, "on_plate") > 0.5:
             return _open_in_place()
         h = hand(state, robot)
         pot_xy = np.array([state.get(pot, "x"), state.get(pot, "y")])
@@ -308,7 +304,8 @@ class PlacePotOnPlatePolicy:
             return move_action(state, robot, np.array([*h[:2], SAFE_Z]), -1.0)
         if not low and err > ALIGNED_HIGH:
             return move_action(state, robot, np.array([*goal_xy, SAFE_Z]), -1.0)
-        return lower_pot(state, robot, np.array([*goal_xy, PLACED_HAND_Z]))
+        z = PLATE_TOP + HANDLE_Z - 0.004
+        return slow_near(state, robot, np.array([*goal_xy, z]), -1.0)
 
 
 class TurnOnPlatePolicy:
