@@ -93,6 +93,10 @@ def tolerance_or_off(text: str) -> float | str:
     return text if text == "off" else nonnegative_float(text)
 
 
+def cost_or_off(text: str) -> float | str:
+    return text if text == "off" else positive_float(text)
+
+
 def positive_or_off(text: str) -> int | str:
     return text if text == "off" else positive(text)
 

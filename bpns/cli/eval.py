@@ -13,6 +13,7 @@ from bpns.cli.common import (
     UserError,
     add_eval_set_arguments,
     approach_by_name,
+    cost_or_off,
     default_workers,
     env_by_name,
     eval_set_from,
@@ -107,6 +108,14 @@ def _add_planning_arguments(p: argparse.ArgumentParser) -> None:
         help="set an abstract plan aside (refined again after the others) once one step "
         "failed every sample from this many arrivals, or 'off' for the paper's "
         "backtracking (default: the env's or 3)",
+    )
+    p.add_argument(
+        "--demote-refuted",
+        type=cost_or_off,
+        help="once a way of achieving some atoms has failed every sample from an arrival "
+        "(and never succeeded), charge the abstract search this much more for it, so "
+        "skeletons that achieve them otherwise come first; 'off' for unit costs, the "
+        "paper's (default: the env's or off)",
     )
     p.add_argument(
         "--run-past-dead-ends",
@@ -378,12 +387,15 @@ def _planning_settings(args: argparse.Namespace, env: Environment) -> PlanningCo
             n_samples=args.n_samples,
             nogood_atol=None if args.nogood_atol == "off" else args.nogood_atol,
             set_aside_after=None if args.set_aside_after == "off" else args.set_aside_after,
+            demote_refuted=None if args.demote_refuted == "off" else args.demote_refuted,
             end_at_dead_end=False if args.run_past_dead_ends else None,
         )
         if args.nogood_atol == "off":
             base = dataclasses.replace(base, nogood_atol=None)
         if args.set_aside_after == "off":
             base = dataclasses.replace(base, set_aside_after=None)
+        if args.demote_refuted == "off":
+            base = dataclasses.replace(base, demote_refuted=None)
     except (TypeError, ValueError) as err:
         raise UserError(f"bad planning settings: {err}") from None
     return base

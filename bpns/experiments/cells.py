@@ -97,7 +97,7 @@ class Cell:
                 eval_tasks=self.eval_tasks,
                 task_seed=self.seed,
                 planner_seed=self.seed,
-                planning=dataclasses.asdict(self.planning),  # type: ignore[arg-type]
+                planning=_planning_settings(self.planning),  # type: ignore[arg-type]
             )
             if self.perturbation is not None:  # (absent: cells stored before keep matching)
                 s["perturbation"] = dataclasses.asdict(self.perturbation)
@@ -230,3 +230,12 @@ def skipped_approaches(config: SweepConfig, envs: Mapping[str, Environment]) -> 
         for approach in config.approaches
         if not approach_info.available_on(approach, envs[name])
     ]
+
+
+def _planning_settings(planning: PlanningConfig) -> dict[str, Any]:
+    """The planning config as stored; settings added since that are off are left out,
+    so cells stored before keep matching."""
+    d = dataclasses.asdict(planning)
+    if d.get("demote_refuted") is None:
+        d.pop("demote_refuted", None)
+    return d

@@ -26,11 +26,11 @@ from bpns.execution.failures import FailureReason
 from bpns.execution.rollouts import Rollout, further
 from bpns.planning.config import PlanningConfig
 from bpns.planning.heuristics import make_heuristic
-from bpns.planning.nogoods import NogoodMemo, PrefixCache, SetAsidePrefixes
+from bpns.planning.nogoods import NogoodMemo, PrefixCache, RefutedAchievers, SetAsidePrefixes
 from bpns.planning.refinement import RefinementResult, RefinementStats, refine
 from bpns.planning.search import STRATEGIES, AbstractPlan, SearchStats, skeletons
 from bpns.planning.strips import SearchTimeout, ground
-from bpns.structs import GroundAtom, Skill, State, STRIPSOperator, Task
+from bpns.structs import GroundAtom, GroundOperator, Skill, State, STRIPSOperator, Task
 
 
 @dataclass(frozen=True)
@@ -119,7 +119,7 @@ def plan(
         return acc.result(True, task, action_dim, None, AbstractPlan((), (init_atoms,), 0.0))
 
     try:
-        generator = _skeletons(task, by_operator, init_atoms, config, deadline, acc)
+        generator = _Skeletons(task, by_operator, init_atoms, config, deadline, acc)
         refiner = _Refiner(
             task,
             by_operator,
@@ -149,33 +149,74 @@ def _skills_by_operator(skills: Sequence[Skill]) -> dict[STRIPSOperator, Skill]:
     return by_operator
 
 
-def _skeletons(
-    task: Task,
-    by_operator: dict[STRIPSOperator, Skill],
-    init_atoms: frozenset[GroundAtom],
-    config: PlanningConfig,
-    deadline: float,
-    acc: _Accumulator,
-) -> Iterator[AbstractPlan]:
-    """The lazy abstract-plan search over the grounded task; grounding counts as
-    search time, and raises ``SearchTimeout`` past ``deadline``."""
-    t0 = time.monotonic()
-    try:
-        problem = ground(list(by_operator), task.objects, init_atoms, task.goal, deadline)
-        heuristic = None if config.search == "ucs" else make_heuristic(config.heuristic, problem)
-    finally:
-        acc.search_time += time.monotonic() - t0
-    acc.ground_operators = len(problem.operators)
-    return skeletons(
-        problem,
-        heuristic,
-        STRATEGIES[config.search],
-        max_skeletons=config.n_abstract,
-        max_length=min(config.max_plan_length, task.horizon),  # each skill acts >= once
-        max_repeats=config.max_state_repeats,
-        deadline=deadline,
-        stats=acc.search,
-    )
+class _Skeletons:
+    """The lazy abstract-plan search over the grounded task, restarted with new operator
+    costs when refinement demotes an achiever (``PlanningConfig.demote_refuted``);
+    skeletons already yielded are not yielded again, and at most ``n_abstract`` are
+    yielded in all. Grounding counts as search time; raises ``SearchTimeout`` past
+    ``deadline``."""
+
+    def __init__(
+        self,
+        task: Task,
+        by_operator: dict[STRIPSOperator, Skill],
+        init_atoms: frozenset[GroundAtom],
+        config: PlanningConfig,
+        deadline: float,
+        acc: _Accumulator,
+    ) -> None:
+        t0 = time.monotonic()
+        try:
+            self.problem = ground(list(by_operator), task.objects, init_atoms, task.goal, deadline)
+            self.heuristic = (
+                None if config.search == "ucs" else make_heuristic(config.heuristic, self.problem)
+            )
+        finally:
+            acc.search_time += time.monotonic() - t0
+        acc.ground_operators = len(self.problem.operators)
+        self.config = config
+        self.max_length = min(config.max_plan_length, task.horizon)  # each skill acts >= once
+        self.deadline = deadline
+        self.acc = acc
+        self.yielded: set[tuple[GroundOperator, ...]] = set()
+        self.demotions = (
+            None if config.demote_refuted is None else RefutedAchievers(config.demote_refuted)
+        )
+        self._search = self._start()
+
+    def _start(self) -> Iterator[AbstractPlan]:
+        extra = (
+            None
+            if self.demotions is None or not self.demotions.demoted
+            else self.demotions.extra_cost(self.problem.operators)
+        )
+        return skeletons(
+            self.problem,
+            self.heuristic,
+            STRATEGIES[self.config.search],
+            max_skeletons=self.config.n_abstract,
+            max_length=self.max_length,
+            max_repeats=self.config.max_state_repeats,
+            deadline=self.deadline,
+            stats=self.acc.search,
+            extra_cost=extra,
+            skip=self.yielded,
+        )
+
+    def next(self) -> AbstractPlan | None:
+        if len(self.yielded) >= self.config.n_abstract:
+            return None
+        skeleton = next(self._search, None)
+        if skeleton is not None:
+            self.yielded.add(skeleton.operators)
+        return skeleton
+
+    def refined(self, skeleton: AbstractPlan, stats: RefinementStats) -> None:
+        """Learn from a skeleton's refinement; restart the search if demotions changed."""
+        if self.demotions is not None and self.demotions.observe(
+            skeleton.operators, stats.step_successes, stats.step_refutations
+        ):
+            self._search = self._start()
 
 
 @dataclass(frozen=True, eq=False)
@@ -208,7 +249,7 @@ class _Refiner:
 
 
 def _refine_in_turn(
-    generator: Iterator[AbstractPlan],
+    generator: _Skeletons,
     refiner: _Refiner,
     config: PlanningConfig,
     acc: _Accumulator,
@@ -220,7 +261,7 @@ def _refine_in_turn(
     while True:
         t0 = time.monotonic()
         try:
-            skeleton = next(generator, None)
+            skeleton = generator.next()
         finally:
             acc.search_time += time.monotonic() - t0
         refining = config
@@ -233,6 +274,11 @@ def _refine_in_turn(
         ref = refiner.refine(skeleton, refining)
         acc.refinement_time += time.monotonic() - t0
         acc.add(ref.stats, skeleton, ref.reason)
+        t0 = time.monotonic()
+        try:
+            generator.refined(skeleton, ref.stats)
+        finally:
+            acc.search_time += time.monotonic() - t0
         acc.furthest = further(acc.furthest, ref.furthest)
         if ref.success:
             return _solved(ref, skeleton, acc)

@@ -53,6 +53,13 @@ class PlanningConfig:
     reuse_prefixes:    start refining a skeleton after the deepest prefix an earlier
                        skeleton of the same call already refined (same steps, same
                        expected abstract states) instead of simulating it again.
+    demote_refuted:    once a ground step has failed every sample from an arrival and no
+                       step adding the same atoms has succeeded, operators that add exactly
+                       those atoms cost this much more in the abstract search, which
+                       restarts (skeletons already tried are not tried again): skeletons
+                       that achieve the atoms another way come first, none is dropped
+                       (see ``bpns.planning.nogoods.RefutedAchievers``). None: unit costs
+                       throughout (the paper's).
     end_on_contact_change: end a skill at the first change of a contact-related atom (as
                        segmentation does): success if the expected atoms hold then, else
                        an immediate sample failure instead of waiting out H_skill.
@@ -77,6 +84,7 @@ class PlanningConfig:
     nogood_atol: float | None = 5e-3
     set_aside_after: int | None = 3
     reuse_prefixes: bool = True
+    demote_refuted: float | None = None
 
     def __post_init__(self) -> None:
         if self.heuristic not in HEURISTICS:
@@ -98,6 +106,10 @@ class PlanningConfig:
             raise ValueError(f"nogood_atol must be >= 0 or None, got {self.nogood_atol}")
         if self.set_aside_after is not None and self.set_aside_after < 1:
             raise ValueError(f"set_aside_after must be >= 1 or None, got {self.set_aside_after}")
+        if self.demote_refuted is not None and not 0 < self.demote_refuted < math.inf:
+            raise ValueError(
+                f"demote_refuted must be a finite cost > 0 or None, got {self.demote_refuted}"
+            )
         if self.max_state_repeats < 0:
             raise ValueError(f"max_state_repeats must be >= 0, got {self.max_state_repeats}")
         if not 0 <= self.stuck_atol < math.inf:

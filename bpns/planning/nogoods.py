@@ -36,9 +36,10 @@ from collections.abc import Hashable
 
 import numpy as np
 
-from bpns.structs import GroundAtom, GroundOperator
+from bpns.structs import GroundAtom, GroundOperator, STRIPSOperator
 
 StepKey = tuple[GroundOperator, frozenset[GroundAtom], frozenset[GroundAtom]]
+Achiever = tuple[STRIPSOperator, frozenset[GroundAtom]]
 
 
 class NogoodMemo:
@@ -123,3 +124,52 @@ class SetAsidePrefixes:
                 self.hits += 1
                 return k - 1
         return None
+
+
+class RefutedAchievers:
+    """Ways of achieving atoms that refinement keeps refuting, demoted in the abstract
+    search (``PlanningConfig.demote_refuted``).
+
+    An *achiever* is a lifted operator with the atoms a ground step of it adds: the
+    skill, and what it was chosen to achieve, whatever the other arguments (Stick
+    Button's press from one button or another). Once a step has failed every sample from
+    an arrival and no step of the same achiever has succeeded in this ``plan`` call, every
+    ground operator of it costs ``cost`` more, so skeletons that achieve those atoms
+    another way come first. In Stick Button a button out of the hand's reach is refuted
+    at the first skeleton; without this the search yields every order of the other
+    presses (7 buttons: 720) before a skeleton that presses it with the stick. Demotion
+    only reorders skeletons, it drops none; an achiever that later succeeds is restored.
+    """
+
+    def __init__(self, cost: float) -> None:
+        if not 0.0 < cost < float("inf"):
+            raise ValueError(f"demotion cost must be finite and > 0, got {cost}")
+        self.cost = cost
+        self._refuted: set[Achiever] = set()
+        self._achieved: set[Achiever] = set()
+        self.demoted: frozenset[Achiever] = frozenset()
+
+    def observe(
+        self,
+        operators: tuple[GroundOperator, ...],
+        successes: tuple[int, ...],
+        refutations: tuple[int, ...],
+    ) -> bool:
+        """Record one refinement's steps; True if the demoted set changed."""
+        for op, ok, refuted in zip(operators, successes, refutations, strict=False):
+            if ok:
+                self._achieved.add(_achiever(op))
+            elif refuted:
+                self._refuted.add(_achiever(op))
+        demoted = frozenset(self._refuted - self._achieved)
+        changed = demoted != self.demoted
+        self.demoted = demoted
+        return changed
+
+    def extra_cost(self, operators: tuple[GroundOperator, ...]) -> list[float]:
+        """Per ground operator: ``cost`` if its achiever is demoted, else 0."""
+        return [self.cost if _achiever(op) in self.demoted else 0.0 for op in operators]
+
+
+def _achiever(op: GroundOperator) -> Achiever:
+    return (op.operator, op.add_effects)

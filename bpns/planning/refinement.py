@@ -49,6 +49,8 @@ class RefinementStats:
     # `bpns eval --explain` shows of a failed task)
     step_successes: tuple[int, ...] = ()
     step_failures: tuple[tuple[tuple[FailureReason, int], ...], ...] = ()
+    # per step: arrivals from which every sample failed (not for lack of time steps)
+    step_refutations: tuple[int, ...] = ()
 
     def failures(self, reason: str) -> int:
         return dict(self.sample_failures).get(reason, 0)
@@ -94,7 +96,7 @@ class _Counters:
         self.failures[reason] += 1
         self.step_failures[step][reason] += 1
 
-    def freeze(self, sim_steps: int) -> RefinementStats:
+    def freeze(self, sim_steps: int, refutations: Sequence[int] = ()) -> RefinementStats:
         return RefinementStats(
             self.samples,
             sim_steps,
@@ -102,6 +104,7 @@ class _Counters:
             tuple(sorted(self.failures.items())),
             tuple(self.step_successes),
             tuple(tuple(sorted(c.items())) for c in self.step_failures),
+            tuple(refutations),
         )
 
 
@@ -340,7 +343,7 @@ def refine(
         reason = FailureReason.TIMEOUT
         if i < n:
             furthest = further(furthest, _attempt(steps, i, executor, FailureReason.TIMEOUT))
-    stats = counters.freeze(executor.sim_steps)
+    stats = counters.freeze(executor.sim_steps, [s.refuted_arrivals for s in steps])
     if reason is not None:
         return _failed(reason, stats, executor.low.size, furthest)
     return _refined(steps, skills, plan, task, executor.low.size, stats)

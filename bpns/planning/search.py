@@ -17,7 +17,7 @@ from __future__ import annotations
 import heapq
 import itertools
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Container, Iterator, Sequence
 from dataclasses import dataclass
 
 from bpns.planning.heuristics import Heuristic
@@ -100,15 +100,20 @@ def skeletons(
     max_repeats: int = 0,
     deadline: float | None = None,
     stats: SearchStats | None = None,
+    extra_cost: Sequence[float] | None = None,
+    skip: Container[tuple[GroundOperator, ...]] = (),
 ) -> Iterator[AbstractPlan]:
     """Yield up to ``max_skeletons`` distinct abstract plans in ``priority`` order.
 
     Plans have at most ``max_length`` operators, and an abstract state recurs on one plan
     at most ``max_repeats`` times: a loop in the abstraction can be real progress in the
     world (turning a pot by its knob and letting go changes only a continuous feature).
-    Operators cost 1. ``heuristic=None`` means h = 0 (and no dead-end pruning). The
-    generator raises :class:`~bpns.planning.strips.SearchTimeout` once ``deadline``
-    (a ``time.monotonic()`` value) has passed, and simply ends when the space is exhausted.
+    Operator ``i`` costs ``1 + extra_cost[i]`` (1 without ``extra_cost``); the heuristic
+    never sees the extra, so it stays admissible. Plans whose operators are in ``skip``
+    (yielded by an earlier search of the same problem) are passed over and not counted.
+    ``heuristic=None`` means h = 0 (and no dead-end pruning). The generator raises
+    :class:`~bpns.planning.strips.SearchTimeout` once ``deadline`` (a
+    ``time.monotonic()`` value) has passed, and simply ends when the space is exhausted.
     """
     stats = stats if stats is not None else SearchStats()
     h_of = heuristic if heuristic is not None else (lambda s: 0.0)
@@ -130,24 +135,27 @@ def skeletons(
         check_deadline(deadline)
         _, _, node = heapq.heappop(frontier)
         state = node.state
+        found = _extract(problem, node) if state & goal == goal else None
+        if found is not None and found.operators in skip:
+            continue
         k = pops.get(state, 0) + 1
         if k > max_skeletons:
             continue
         pops[state] = k
-        if state & goal == goal:
+        if found is not None:
             stats.skeletons += 1
             n_yielded += 1
-            yield _extract(problem, node)
+            yield found
             if n_yielded >= max_skeletons:
                 return
             continue
         if node.depth >= max_length:
             continue
         stats.nodes_expanded += 1
-        g = node.g + 1.0
         for i, p in enumerate(pre):
             if state & p != p:
                 continue
+            g = node.g + 1.0 + (extra_cost[i] if extra_cost is not None else 0.0)
             child = (state & ~delete[i]) | add[i]
             if node.visits(child) > max_repeats:
                 continue
