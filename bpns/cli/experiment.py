@@ -14,7 +14,7 @@ from pathlib import Path
 
 from bpns.acting.config import MODES
 from bpns.approaches import get_approach
-from bpns.cli.common import Terminated, UserError, path_arg, whole_at_least
+from bpns.cli.common import Terminated, UserError, path_arg, positive_float, whole_at_least
 from bpns.cli.paths import check_free_space, check_output_dir
 from bpns.data.datasets import min_demo_bytes
 from bpns.env import registry
@@ -110,6 +110,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "'NAME=VALUE ...' belief (as `bpns eval --model`)",
     )
     parser.add_argument(
+        "--demote-refuted",
+        type=positive_float,
+        metavar="COST",
+        help="plan every eval cell with `bpns eval --demote-refuted COST` (default: the "
+        "environments' own setting, off for the shipped domains)",
+    )
+    parser.add_argument(
         "--workers",
         type=_count,
         default=1,
@@ -152,6 +159,7 @@ def sweep_config(args: argparse.Namespace) -> SweepConfig:
             worlds=args.worlds,
             executions=args.execution,
             model=args.model,
+            demote_refuted=args.demote_refuted,
         )
     except SweepConfigError as err:
         raise UserError(str(err)) from None
@@ -276,6 +284,8 @@ def command_line(config: SweepConfig, out: Path, args: argparse.Namespace) -> st
         argv += ["--execution", *config.executions]
     if config.model != "nominal":
         argv += ["--model", config.model]
+    if config.demote_refuted is not None:
+        argv += ["--demote-refuted", f"{config.demote_refuted:g}"]
     argv += ["--workers", str(args.workers)]
     if args.backend != "pool":
         argv += ["--backend", args.backend]

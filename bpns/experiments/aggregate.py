@@ -60,6 +60,8 @@ class SeedResult:
     sim_steps_per_step: float | None = None
     num_solved: int = 0
     mean_replans: float = 0.0  # closed loop: divergences repaired per task
+    # median over solved tasks of the final plan's ground skills (None: not recorded)
+    median_plan_steps: float | None = None
 
     @classmethod
     def from_record(cls, record: dict[str, Any]) -> SeedResult:
@@ -76,6 +78,7 @@ class SeedResult:
             sim_steps_per_step=r.get("median_sim_steps_per_step", _median_sim_ratio(r["tasks"])),
             num_solved=int(r.get("num_solved", sum(bool(t["solved"]) for t in r["tasks"]))),
             mean_replans=float(r.get("mean_replans", 0.0)),
+            median_plan_steps=_median_plan_steps(r["tasks"]),
         )
 
     def fraction_solved_within(self, seconds: float) -> float:
@@ -91,6 +94,12 @@ def _median_sim_ratio(tasks: Iterable[dict[str, Any]]) -> float | None:
         if t["solved"] and t.get("num_actions") and "sim_steps" in t
     ]
     return statistics.median(ratios) if ratios else None
+
+
+def _median_plan_steps(tasks: Iterable[dict[str, Any]]) -> float | None:
+    """Cells stored before plan lengths were recorded have none."""
+    steps = [t["plan_steps"] for t in tasks if t["solved"] and t.get("plan_steps")]
+    return statistics.median(steps) if steps else None
 
 
 @dataclass(frozen=True)
@@ -146,6 +155,10 @@ class Row:
     def sim_steps_per_step(self) -> Stat:
         return Stat.of(s.sim_steps_per_step for s in self.seeds)
 
+    @property
+    def plan_steps(self) -> Stat:
+        return Stat.of(s.median_plan_steps for s in self.seeds)
+
     def to_json(self) -> dict[str, Any]:
         return {
             "env": self.env,
@@ -166,6 +179,7 @@ class Row:
             "nodes_created": self.nodes_created.to_json(),
             "learning_seconds": self.learning_seconds.to_json(),
             "sim_steps_per_step": self.sim_steps_per_step.to_json(),
+            "plan_steps": self.plan_steps.to_json(),
         }
 
 

@@ -141,7 +141,9 @@ def plan_cells(config: SweepConfig, envs: Mapping[str, Environment]) -> list[Cel
     evals: list[Cell] = []
     for name in config.envs:
         env = envs[name]
-        base = planning_config_for(env, timeout=config.timeout)
+        base = planning_config_for(
+            env, timeout=config.timeout, demote_refuted=config.demote_refuted
+        )
         for seed in config.seeds:
             demo_cell = Cell(DEMOS, name, seed, config.max_demos, demo_noise=demo_noise_of(env))
             demos.append(demo_cell)

@@ -10,6 +10,9 @@ display, no pyplot state) and written atomically as PNG and SVG.
 - success vs world (a sweep with ``--worlds``): per environment, the pooled share of
   eval tasks solved in each world with its Wilson 95 % interval, one line per approach
   (and demo count) and execution: closed loop solid, open loop dashed.
+- cost vs object count (a sweep with ``--objects-axis``): per environment, median
+  planning time, nodes created and simulated steps per plan step at each count on log-log
+  axes (mean ± std over seeds), one line per approach, the fitted exponent in the legend.
 - success vs planning time: per environment, the percentage of eval tasks solved within
   t seconds, mean over seeds with a ± std band; learning approaches at their largest
   demo count.
@@ -27,6 +30,7 @@ from matplotlib.figure import Figure
 from bpns.atomic import atomic_path
 from bpns.env.perturbations import AXIS_LABELS
 from bpns.experiments.aggregate import Row
+from bpns.experiments.growth import growth_of
 
 FORMATS = ("png", "svg")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
@@ -156,6 +160,64 @@ def success_vs_perturbation(rows: Sequence[Row]) -> Figure:
         ax.set_title(env)
         ax.grid(alpha=0.3)
     _legend_below(fig, axes)
+    return fig
+
+
+COST_PANELS = (
+    ("median planning time (s)", "median_seconds"),
+    ("nodes created", "nodes_created"),
+    ("simulated steps / plan step", "sim_steps_per_step"),
+)
+
+
+def cost_vs_objects(rows: Sequence[Row]) -> Figure:
+    """Issue 38's scaling figure: one row of panels per environment (time, nodes,
+    simulated steps per plan step against the object count, log-log), one line per
+    approach and demo count; the legend carries time's fitted exponent."""
+    mine = [r for r in rows if r.axis_of == "objects" and r.level is not None]
+    envs = list(dict.fromkeys(r.env for r in mine))
+    axis = next(r.axis for r in mine)
+    colours = _colours(mine)
+    exponents = {(g.env, g.label, g.demos): g.time_vs_count for g in growth_of(mine)}
+    fig = Figure(figsize=(13.0, 3.2 * len(envs) + 0.6), layout="constrained")
+    grid = fig.subplots(len(envs), len(COST_PANELS), squeeze=False)
+    fig.suptitle(f"Cost vs {axis} count (mean ± std over seeds; k: time ∝ count^k)")
+    for panels, env in zip(grid, envs, strict=True):
+        lines = list(dict.fromkeys((r.approach, r.demos) for r in mine if r.env == env))
+        for i, (approach, demos) in enumerate(lines):
+            line = sorted(
+                (r for r in mine if (r.env, r.approach, r.demos) == (env, approach, demos)),
+                key=lambda r: r.level,  # type: ignore[arg-type, return-value]
+            )
+            k = exponents.get((env, line[0].label, demos))
+            label = line[0].label + ("" if demos is None else f" ({demos} demos)")
+            label += "" if k is None else f", k={k:.2f}"
+            for ax, (_, field) in zip(panels, COST_PANELS, strict=True):
+                stats = [getattr(r, field) for r in line]
+                xs = [r.level for r, s in zip(line, stats, strict=True) if s.mean is not None]
+                kept = [s for s in stats if s.mean is not None]
+                if not kept:
+                    continue
+                ax.errorbar(
+                    xs,
+                    [s.mean for s in kept],
+                    yerr=[s.std for s in kept],
+                    color=colours[approach],
+                    marker=MARKERS[i % len(MARKERS)],
+                    capsize=3,
+                    label=label,
+                )
+        counts = sorted({r.level for r in mine if r.env == env})  # type: ignore[type-var]
+        for ax, (ylabel, _) in zip(panels, COST_PANELS, strict=True):
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_xticks(counts, [f"{c:g}" for c in counts])
+            ax.minorticks_off()
+            ax.set_xlabel(f"{axis} count")
+            ax.set_ylabel(ylabel)
+            ax.set_title(env)
+            ax.grid(alpha=0.3, which="both")
+    _legend_below(fig, list(grid.flat))
     return fig
 
 

@@ -51,6 +51,8 @@ class SweepConfig:
     worlds: tuple[str, ...] = ()
     executions: tuple[str, ...] = ()
     model: str = "nominal"  # what the planner simulates (``bpns eval --model``)
+    # PlanningConfig.demote_refuted for every eval cell (None: the environment's)
+    demote_refuted: float | None = None
 
     def __post_init__(self) -> None:
         for field in ("envs", "demo_counts", "seeds", "approaches"):
@@ -85,6 +87,10 @@ class SweepConfig:
                     f"cell {name}={same[0]} (cells are named to 6 significant digits); give "
                     "levels that differ in their first 6 digits"
                 )
+        if self.demote_refuted is not None and not 0 < self.demote_refuted < math.inf:
+            raise SweepConfigError(
+                f"demote_refuted must be a finite cost > 0, got {self.demote_refuted}"
+            )
         self._check_worlds()
         if self.perturb_axis is not None and self.worlds:
             raise SweepConfigError("sweep either a perturbation axis or worlds, not both")
@@ -170,6 +176,8 @@ class SweepConfig:
             del d["perturb_axis"]
         if self.objects_axis is None:  # (absent, likewise)
             del d["objects_axis"]
+        if self.demote_refuted is None:  # (absent, likewise)
+            del d["demote_refuted"]
         if not self.worlds and not self.executions and self.model == "nominal":
             del d["worlds"], d["executions"], d["model"]  # (absent, likewise)
         return d

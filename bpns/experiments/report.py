@@ -12,7 +12,9 @@ from bpns.atomic import atomic_path
 from bpns.experiments import approach_info
 from bpns.experiments.aggregate import Row, aggregate, markdown_table
 from bpns.experiments.cells import EVAL, SWEEP_GNN_SEED, Cell
+from bpns.experiments.growth import growth_of, growth_table
 from bpns.experiments.plots import (
+    cost_vs_objects,
     save_figure,
     success_vs_demos,
     success_vs_perturbation,
@@ -45,6 +47,9 @@ def write_report(
     if rows and config.axis_name is not None:  # the axis' figure instead
         figures = [(f"success_vs_{config.axis_name}", f"success vs {config.axis_name}")]
         written += save_figure(success_vs_perturbation(rows), out / figures[0][0])
+        if config.objects_axis is not None:  # and how the cost grows with the count
+            figures.append((f"cost_vs_{config.axis_name}", f"cost vs {config.axis_name} count"))
+            written += save_figure(cost_vs_objects(rows), out / figures[1][0])
     elif rows and config.worlds:  # the demos and time figures would mix the worlds
         figures = [(FIG_WORLD, "success by world, closed and open loop")]
         written += save_figure(success_vs_world(rows), out / FIG_WORLD)
@@ -92,6 +97,18 @@ def write_report(
     if missing:
         text += [f"**{missing} eval cells are not finished; their rows are incomplete.**", ""]
     text += [table]
+    growth = growth_table(rows)
+    if growth:
+        text += [
+            "",
+            "Fitted growth: the least-squares exponent k of cost ∝ count^k (log-log) over the "
+            "counts, on the mean over seeds of each seed's median time, its mean nodes and "
+            "its median simulated steps per plan step; plan length is the median number of "
+            "ground skills of the solved tasks' final plans (k ≤ 1: time grows no faster "
+            "than the plans).",
+            "",
+            growth,
+        ]
     if rows:
         text += [""]
         for stem, caption in figures:
@@ -103,6 +120,8 @@ def write_report(
     with atomic_path(js) as tmp:
         payload = {"config": config.to_json(), "command": command, "missing_cells": missing}
         payload["rows"] = [r.to_json() for r in rows]
+        if growth:
+            payload["growth"] = [g.to_json() for g in growth_of(rows)]
         tmp.write_text(json.dumps(payload, indent=1) + "\n")
     return rows, [md, js, *written]
 

@@ -146,6 +146,7 @@ def _evaluate(job: CellJob) -> dict[str, Any]:
             "samples": o.samples,
             "sim_steps": o.sim_steps,
             "num_actions": o.num_actions,
+            "plan_steps": len(o.skeleton),  # ground skills of the final plan (0: unsolved)
             "replans": o.replans,
             "world": o.world.label(),
         }
