@@ -15,7 +15,7 @@ from bpns.cli.common import (
     print_lines,
     progress,
 )
-from bpns.cli.paths import capped_to_cores, check_output_file, writing
+from bpns.cli.paths import capped_to_cores, check_output_file, claimed, writing
 from bpns.env.environment import perturbed
 from bpns.env.perturbations import PerturbationError
 from bpns.env.worlds import parse_world
@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--perturb: {err}") from None
     check_output_file(args.out, "--out", args.overwrite)
     workers = capped_to_cores(args.workers, "--workers")
-    with writing(args.out, "--out"):  # also: more demos than the disk holds, refused first
+    with claimed("--out", args.out), writing(args.out, "--out"):  # too many demos: refused first
         written = collect_demos(
             env,
             args.num,

@@ -33,6 +33,7 @@ from bpns.cli.paths import (
     check_not_inside,
     check_output_dir,
     check_output_file,
+    claimed,
     writing,
 )
 from bpns.env.environment import Environment, perturbed
@@ -312,17 +313,22 @@ def run(args: argparse.Namespace) -> int:
         execution=execution,
         eval_set=eval_set_from(args, env),
     )
-    reports = evaluate_approaches(
-        env,
-        names,
-        request,
-        base,
-        skills_dir=args.skills,
-        learned=learned,
-        progress=task_progress,
-        finished=lambda report: print(solved_line(report), flush=True),
-    )
-    _write_outputs(args, env, reports)
+    with (
+        claimed("--out", args.out),
+        claimed("--video", args.video, args.video and args.video.with_suffix(".png")),
+        claimed("--rerun", args.rerun),
+    ):
+        reports = evaluate_approaches(
+            env,
+            names,
+            request,
+            base,
+            skills_dir=args.skills,
+            learned=learned,
+            progress=task_progress,
+            finished=lambda report: print(solved_line(report), flush=True),
+        )
+        _write_outputs(args, env, reports)
     if args.explain:
         for report in reports:
             for line in explain_lines(report):

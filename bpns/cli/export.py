@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from bpns.cli.common import UserError, file_env, path_arg, positive
-from bpns.cli.paths import check_output_dir, writing
+from bpns.cli.paths import check_output_dir, claimed, writing
 from bpns.execution.video import default_camera
 from bpns.workflow.inspect import export_file
 
@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     if args.no_videos and args.camera:
         raise UserError("--no-videos and --camera: choose one")
     cameras = [] if args.no_videos else list(args.camera or [default_camera(env)])
-    with writing(out, "--out"):
+    with claimed("--out", out), writing(out, "--out"):
         exported = export_file(args.file, env, out, cameras, (args.width, args.height))
     videos = f", videos of {', '.join(exported.cameras)}" if exported.cameras else ""
     print(

@@ -18,7 +18,7 @@ from bpns.cli.common import (
     stage_reporter,
     tolerance_or_off,
 )
-from bpns.cli.paths import capped_to_cores, check_skills_dir, usable_cores, writing
+from bpns.cli.paths import capped_to_cores, check_skills_dir, claimed, usable_cores, writing
 from bpns.data.datasets import DatasetError
 from bpns.env.environment import Environment
 from bpns.learning.config import LearningConfig, learning_config_for
@@ -188,7 +188,7 @@ def run(args: argparse.Namespace) -> int:
     workers = usable_cores() if args.workers is None else capped_to_cores(args.workers, "--workers")
     config = learning_config_from(args, env)
     try:
-        with writing(args.out):
+        with claimed("--out", args.out), writing(args.out):
             learned = learn_to_directory(
                 env,
                 args.demos,

@@ -11,6 +11,7 @@ skills directory, a directory that is not one.
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import stat
 import sys
@@ -123,6 +124,50 @@ def writing(path: Path | None, flag: str | None = None) -> Iterator[None]:
         if problem is None:
             raise
         raise UserError(problem) from None
+
+
+@contextlib.contextmanager
+def claimed(flag: str, *paths: Path | None) -> Iterator[None]:
+    """Hold ``paths`` (the outputs ``flag`` named; None: none) for this command: another
+    ``bpns`` command claiming one of them while this one runs is refused with one line.
+    Each had checked before any work that the output did not exist yet (or that
+    --overwrite was given), so without the claim two commands started together both
+    passed, and the later one replaced the other's output unasked. The claim is an
+    ``flock`` on ``.NAME.lock`` beside the output, deleted when the command ends (the
+    kernel releases it when a killed process dies)."""
+    with contextlib.ExitStack() as held:
+        for path in dict.fromkeys(p for p in paths if p is not None):
+            held.enter_context(_claim(path, flag))
+        yield
+
+
+@contextlib.contextmanager
+def _claim(path: Path, flag: str) -> Iterator[None]:
+    lock = path.parent / f".{path.name}.lock"
+    lock.parent.mkdir(parents=True, exist_ok=True)  # its checks found the place writable
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise UserError(
+                f"{flag} {path}: is being written by another running bpns command; "
+                "wait for it to finish, or write elsewhere"
+            ) from None
+        try:
+            same = os.stat(lock).st_ino == os.fstat(fd).st_ino
+        except FileNotFoundError:  # its holder finished and deleted it as we opened it
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
+        yield
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(lock)  # still held: a command opening it now retries on a new one
+        os.close(fd)
 
 
 def check_free_space(path: Path, needed: int, flag: str, what: str) -> None:

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from bpns.cli.common import UserError, file_env, nonnegative, path_arg, positive
-from bpns.cli.paths import check_output_file
+from bpns.cli.paths import check_output_file, claimed
 from bpns.data.datasets import DatasetError, load_demonstrations
 from bpns.evaluation.rollout_files import RolloutsFile, is_rollouts_file
 from bpns.execution.video import VideoError, default_camera, render_rollout, render_video
@@ -58,30 +58,33 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"--png {args.png}: give a .png name")
     if out.suffix != ".mp4":
         raise UserError(f"--out {out}: give an .mp4 name (the video is H.264 in MP4)")
-    try:
-        if rollouts is not None:
-            row = rollouts.row(args.task)
-            demo = rollouts.demonstration(env, row)
-            world = rollouts.environment(env, row)
-            n = render_rollout(
-                world,
-                demo.states,
-                row.steps,
-                row.solved,
-                row.reason,
-                out,
-                args.camera,
-                args.width,
-                args.height,
-                args.png,
-                row.physics.label(),
-                row.events,
-            )
-        else:
-            (demo,) = load_demonstrations(args.file, env, [args.demo])
-            camera = args.camera or default_camera(env)
-            n = render_video(env, list(demo.states), out, camera, args.width, args.height, args.png)
-    except (DatasetError, VideoError) as err:
-        raise UserError(str(err)) from None
+    with claimed("--out", out, args.png):
+        try:
+            if rollouts is not None:
+                row = rollouts.row(args.task)
+                demo = rollouts.demonstration(env, row)
+                world = rollouts.environment(env, row)
+                n = render_rollout(
+                    world,
+                    demo.states,
+                    row.steps,
+                    row.solved,
+                    row.reason,
+                    out,
+                    args.camera,
+                    args.width,
+                    args.height,
+                    args.png,
+                    row.physics.label(),
+                    row.events,
+                )
+            else:
+                (demo,) = load_demonstrations(args.file, env, [args.demo])
+                camera = args.camera or default_camera(env)
+                n = render_video(
+                    env, list(demo.states), out, camera, args.width, args.height, args.png
+                )
+        except (DatasetError, VideoError) as err:
+            raise UserError(str(err)) from None
     print(f"wrote {out} ({n} frames at 30 fps)" + (f" and {args.png}" if args.png else ""))
     return 0

@@ -37,6 +37,7 @@ from bpns.cli.paths import (
     check_output_dir,
     check_output_file,
     check_skills_dir,
+    claimed,
     writing,
 )
 from bpns.data.datasets import DatasetError
@@ -185,7 +186,8 @@ def parse_run(args: argparse.Namespace) -> RunConfig:
 
 def run(args: argparse.Namespace) -> int:
     config = parse_run(args)
-    with writing(config.out, "--out"):  # each file's write creates the directories it needs
+    # each file's write creates the directories it needs
+    with claimed("--out", config.out), writing(config.out, "--out"):
         t0 = time.perf_counter()
         if not collect(config):
             return 1

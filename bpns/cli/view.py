@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from bpns.cli.common import UserError, file_env, nonnegative, path_arg, positive
-from bpns.cli.paths import check_output_file, writing
+from bpns.cli.paths import check_output_file, claimed, writing
 from bpns.execution.video import default_camera
 from bpns.workflow.inspect import record_file
 
@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     out = args.out or Path(f"{name}.rrd")
     check_output_file(out, "--out", args.overwrite, [args.file])
     cameras = list(args.camera or ([default_camera(env)] if args.images else []))
-    with writing(out, "--out"):
+    with claimed("--out", out), writing(out, "--out"):
         recorded = record_file(
             args.file, env, out, args.task, args.demo, cameras, (args.width, args.height)
         )
