@@ -132,6 +132,14 @@ CASES = [
     (_index(lambda i: i.__setitem__("note", "mine")), r"the index has the unknown key 'note'"),
     (_index(lambda i: i.pop("predicates")), r"the index lacks the key 'predicates'"),
     (
+        _index(lambda i: i["config"].__setitem__("refuse_novel_start", False)),
+        r"config has the unknown key 'refuse_novel_start'",
+    ),
+    (
+        _index(lambda i: i["config"]["policy"].__setitem__("hiden_sizes", [8])),
+        r"config network has the unknown key 'hiden_sizes'",
+    ),
+    (
         lambda path: _edit_npz(path, lambda a: a.pop("net/w2")),
         r"Holding.policy.npz lacks the array 'net/w2'",
     ),

@@ -249,7 +249,12 @@ def check_index_schema(index: Mapping[str, Any]) -> None:
 
 def check_json_fields(values: Mapping[str, Any], cls: type, where: str) -> None:
     """Each value whose key is a field of dataclass ``cls`` has a JSON type its
-    annotation admits (int, float, bool, tuple of int, optional ones, or an object)."""
+    annotation admits (int, float, bool, tuple of int, optional ones, or an object),
+    and no key is another (a setting mistyped by hand would be ignored). A field may be
+    missing: directories saved before it existed load with its default."""
+    unknown = sorted(values.keys() - {f.name for f in dataclasses.fields(cls)})
+    if unknown:
+        raise ValueError(f"{where} has the unknown key {unknown[0]!r}")
     for f in dataclasses.fields(cls):
         if f.name not in values:
             continue
