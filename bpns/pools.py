@@ -57,6 +57,20 @@ def worker_died(job: str | None = None) -> WorkerDiedError:
     )
 
 
+#: what starting a worker raises when the pool is broken, or when the forkserver that
+#: starts workers was killed while starting one
+_START_FAILED = (BrokenProcessPool, EOFError, ConnectionError)
+
+
+def submit(pool: Executor, fn: Callable[[T], R], item: T, job: str | None = None) -> Future[R]:
+    """``pool.submit(fn, item)``, a worker that could not start because a worker or the
+    forkserver died reported as :class:`WorkerDiedError` (naming ``job``)."""
+    try:
+        return pool.submit(fn, item)
+    except _START_FAILED:
+        raise worker_died(job) from None
+
+
 def result_of(future: Future[R], job: str | None = None) -> R:
     """``future.result()``, a dead worker reported as :class:`WorkerDiedError`."""
     try:
@@ -76,7 +90,11 @@ def pool_map(
     items = list(items)
     done = 0
     try:
-        for out in pool.map(fn, items):
+        results = pool.map(fn, items)  # submits them all: starts the workers
+    except _START_FAILED:
+        raise worker_died(name(items[0]) if name is not None and items else None) from None
+    try:
+        for out in results:
             yield out
             done += 1
     except BrokenProcessPool:
@@ -166,7 +184,7 @@ def bounded_map(
     iterator = iter(items)
     try:
         for item in iterator:
-            pending.append(pool.submit(fn, item))
+            pending.append(submit(pool, fn, item))
             if len(pending) >= max(1, in_flight):
                 yield result_of(pending.popleft())
         while pending:

@@ -24,6 +24,7 @@ from bpns.pools import (
     max_workers,
     pool_map,
     result_of,
+    submit,
 )
 
 
@@ -46,6 +47,25 @@ def test_a_worker_killed_mid_job_is_one_clear_error_naming_the_fix(how):
     assert "Traceback" not in str(err.value) and "\n" not in str(err.value)
     if how == "pool_map":
         assert "while task 2 was unfinished" in str(err.value)
+
+
+class _ForkserverKilledMidStart(ThreadPoolExecutor):
+    def submit(self, fn, /, *args, **kwargs):
+        raise EOFError("unexpected EOF")  # multiprocessing's, reading the new worker's pid
+
+
+@pytest.mark.parametrize("how", ["bounded_map", "pool_map", "submit"])
+def test_a_worker_that_cannot_start_because_the_forkserver_died_is_one_clear_error(how):
+    with _ForkserverKilledMidStart(1) as pool:
+        with pytest.raises(WorkerDiedError, match="fewer --workers") as err:
+            if how == "bounded_map":
+                list(bounded_map(pool, abs, range(3), in_flight=1))
+            elif how == "pool_map":
+                list(pool_map(pool, abs, range(3), name=lambda i: f"task {i}"))
+            else:
+                submit(pool, abs, -1, "network 1 (policies)")
+    if how == "submit":
+        assert "while network 1 (policies) was unfinished" in str(err.value)
 
 
 def test_worker_counts_are_capped_at_the_cpu_count():

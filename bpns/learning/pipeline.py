@@ -38,7 +38,7 @@ from bpns.learning.partition import SegmentGroup, partition_segments
 from bpns.learning.samplers import SamplerFit
 from bpns.learning.segmentation import segment_demonstration
 from bpns.learning.sharing import shared_data
-from bpns.pools import make_pool, result_of
+from bpns.pools import make_pool, result_of, submit
 from bpns.structs import Demonstration, Predicate, Segment, Skill, STRIPSOperator, Type
 
 STAGES = ("segment", "partition", "operators", "policies", "samplers")
@@ -385,7 +385,9 @@ class _Trainer:
         else:
             if self._pool is None:
                 self._pool = make_pool(self.workers)
-            self._pending.append((self._pool.submit(train_network, job), job.stage))
+            n = len(self._pending) + 1
+            future = submit(self._pool, train_network, job, f"network {n} ({job.stage})")
+            self._pending.append((future, job.stage))
         self.seconds += time.perf_counter() - t0
         return len(self._pending) - 1
 
