@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from bpns.baselines.learn import STAGES, learn_baselines_into
+from bpns.baselines.learn import STAGES, learn_baselines, save_baselines
 from bpns.data.datasets import count_demonstrations, iter_demonstrations
 from bpns.data.demos import Progress, no_progress
 from bpns.env.environment import Environment
@@ -106,11 +106,24 @@ def learn_to_directory(
         )
     except ValueError as err:
         raise CannotLearnError(f"cannot learn from {demos_path}: {err}") from None
-    save_skills(learned, out, overwrite=True, env_name=env.name)
+    learned_baselines = None
+    if baselines is not None:  # before saving anything: stopped while they train (the
+        # longest stage), the old `out` is left whole, not new skills without baselines
+        learned_baselines = learn_baselines(
+            demos,
+            env.predicates,
+            env.types,
+            learned,
+            baselines,
+            report=report,
+            given=given_skills_of(env),
+        )
+    beside = None
     baseline_seconds = None
-    if baselines is not None:
-        # after the skills: saving them replaces `out`
-        baseline_seconds = learn_baselines_into(out, env, demos, learned, baselines, report)
+    if learned_baselines is not None:  # into the new directory before it replaces `out`
+        beside = lambda d: save_baselines(learned_baselines, d, env.name)  # noqa: E731
+        baseline_seconds = learned_baselines.stage_seconds
+    save_skills(learned, out, overwrite=True, env_name=env.name, beside=beside)
     # the segments hold every demonstration's states: not kept through what comes next
     learned = dataclasses.replace(learned, segments=())
     return LearnedRun(learned, env.name, n, load_seconds, out, baseline_seconds)

@@ -110,3 +110,29 @@ def test_a_worker_whose_pool_is_gone_exits_without_a_traceback(capsys, monkeypat
     ):
         worker_start._quiet_when_the_pool_is_gone(*other)
     assert shown == [ValueError, FileNotFoundError, FileNotFoundError]
+
+
+@pytest.mark.parametrize("stage", ["learn_baselines", "save_baselines"])
+def test_learn_stopped_while_its_baselines_train_or_save_keeps_the_old_skills_whole(
+    stage, cover_demo_file, tmp_path, monkeypatch, capsys
+):
+    from bpns.baselines import learn as baselines_learn
+    from bpns.cli import main
+    from bpns.workflow import learn as workflow_learn
+
+    out = tmp_path / "skills"
+    argv = ["learn", str(cover_demo_file), "--out", str(out), "--workers", "1", "--limit", "2"]
+    assert main([*argv, "--baselines", "--baseline-steps", "5"]) == 0
+    before = {p.name: _digest(p) for p in out.iterdir() if p.is_file()}
+    assert {"gnn_bc.npz", "gnn_meta.npz", "skills.json"} <= before.keys()
+
+    def stopped(*args, **kwargs):  # Ctrl-C while the GNNs train (the longest stage) or save
+        raise KeyboardInterrupt
+
+    for module in (baselines_learn, workflow_learn):
+        monkeypatch.setattr(module, stage, stopped, raising=False)
+    capsys.readouterr()
+    code = main([*argv, "--baselines", "--baseline-steps", "5", "--overwrite", "--seed", "1"])
+    assert (code, capsys.readouterr().err.strip()) == (130, "bpns: interrupted")
+    assert {p.name: _digest(p) for p in out.iterdir() if p.is_file()} == before
+    assert [p.name for p in tmp_path.iterdir()] == ["skills"]  # no temporary left behind

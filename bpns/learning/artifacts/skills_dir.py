@@ -25,7 +25,7 @@ import os
 import shutil
 import tempfile
 import zipfile
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -66,11 +66,14 @@ def save_skills(
     directory: str | os.PathLike,
     overwrite: bool = False,
     env_name: str | None = None,
+    beside: Callable[[Path], object] | None = None,
 ) -> Path:
     """Write ``skills`` to ``directory`` atomically; returns the directory path.
 
     ``env_name`` is recorded so that tools can load the skills without being told which
-    environment's predicates to bind them to.
+    environment's predicates to bind them to. ``beside(d)`` writes more files (the
+    baselines) into the new directory ``d`` before it replaces ``directory``, so the
+    skills and what was learned with them replace the old ones together or not at all.
     """
     target = Path(directory)
     recover_directory(target)  # a save killed between its two renames
@@ -105,6 +108,8 @@ def save_skills(
         (tmp / DOMAIN).write_text(
             domain_pddl(env_name or "learned", skills.types, skills.predicates, skills.operators)
         )
+        if beside is not None:
+            beside(tmp)
         replace_directory(tmp, target)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
