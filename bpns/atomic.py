@@ -270,3 +270,96 @@ def replace_directory(new: str | os.PathLike, target: str | os.PathLike) -> None
     os.rename(target, old)
     os.rename(new, target)
     _discard(old, target)
+
+
+# ------------------------------------------------------------------- staged outputs
+#
+# A command that writes several files into one directory (``bpns eval --out DIR``)
+# writes them all under a staging directory first and puts them in place at the end
+# in a burst of renames during which SIGINT and SIGTERM wait: stopped before that, the
+# earlier outputs are left as they were, not some replaced and some not.
+
+STAGED = "bpns-staged"  # the staging directory is ``ROOT/.bpns-staged.tmp-<pid>-<host>-*``
+
+
+@contextlib.contextmanager
+def deferred_signals() -> Iterator[None]:
+    """SIGINT and SIGTERM arriving inside wait until its end, then act as they would
+    have (from the main thread; elsewhere handlers cannot be changed, nothing waits)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    wanted = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum)) for s in wanted}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        for s in dict.fromkeys(pending):
+            signal.raise_signal(s)
+
+
+class Staging:
+    """Where to write the new files under ``roots`` (directories) so that they replace
+    the old ones together (:meth:`commit`) or not at all: :meth:`path` maps a final path
+    to its place in the root's staging directory; files written next to a staged one
+    (a video's PNG) are staged with it. A file outside every root is staged in a
+    staging directory of its own directory."""
+
+    def __init__(self, *roots: Path | None) -> None:
+        self._roots = [Path(r) for r in roots if r is not None]
+        self._stages: dict[Path, Path] = {}
+
+    def _stage(self, root: Path) -> Path:
+        if root not in self._stages:
+            root.mkdir(parents=True, exist_ok=True)
+            remove_stale_temporaries(root / STAGED)  # of a command that was killed
+            self._stages[root] = Path(
+                tempfile.mkdtemp(prefix=temporary_prefix(root / STAGED), dir=root)
+            )
+        return self._stages[root]
+
+    def path(self, target: Path) -> Path:
+        target = Path(target)
+        root = next((r for r in self._roots if target == r or r in target.parents), None)
+        if root is None:
+            root = target.parent
+        staged = self._stage(root) / target.relative_to(root)
+        staged.parent.mkdir(parents=True, exist_ok=True)
+        return staged
+
+    def commit(self) -> None:
+        """Rename every staged file over its target (SIGINT and SIGTERM wait meanwhile)."""
+        umask = os.umask(0)
+        os.umask(umask)
+        with deferred_signals():
+            for root, stage in self._stages.items():
+                for path in sorted(stage.rglob("*")):
+                    if path.is_dir():
+                        continue
+                    target = root / path.relative_to(stage)
+                    target.parent.mkdir(parents=True, exist_ok=True)
+                    os.chmod(path, 0o666 & ~umask)  # mkstemp made some 0600
+                    os.replace(path, target)
+        self.discard()
+
+    def discard(self) -> None:
+        for stage in self._stages.values():
+            shutil.rmtree(stage, ignore_errors=True)
+        self._stages.clear()
+
+
+@contextlib.contextmanager
+def staged(*roots: Path | None) -> Iterator[Staging]:
+    """A :class:`Staging` committed when the block ends normally, discarded otherwise."""
+    staging = Staging(*roots)
+    try:
+        yield staging
+        staging.commit()
+    finally:
+        staging.discard()

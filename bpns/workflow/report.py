@@ -9,6 +9,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from bpns.atomic import staged
 from bpns.env.environment import Environment
 from bpns.errors import BpnsError
 from bpns.evaluation.evaluate import EvalReport, conditions_line, markdown_table
@@ -60,26 +61,33 @@ def report_evaluation(
     ``page`` asks for (:mod:`bpns.workflow.report_page`). Raises ``VideoError`` when rendering
     fails and :class:`TaskNotEvaluatedError` for a task not evaluated."""
     table = conditions_line(reports) + "\n\n" + markdown_table(reports)
-    if out is not None:
-        write_results(out, reports, table, env)
-    rendered = None
-    no_video_of = None
-    if video is not None:
-        solving = next((r for r in reports if r.num_solved), reports[0])
-        if task is not None:
-            solving = reports[0]
-        try:
-            rendered = render_longest_solved(env, solving, video, seed, train, task, camera)
-        except VideoError:
-            raise
-        except ValueError as err:
-            raise TaskNotEvaluatedError(str(err)) from None
-        if rendered is None:
-            no_video_of = solving.label
-    written = None
-    if out is not None:
-        if rendered is not None:  # the page shows it, not a second rendering of it
-            key = (solving.approach, rendered.outcome.index)
-            page = dataclasses.replace(page, rendered={key: (rendered.video, rendered.png)})
-        written = write_eval_page(env, reports, out, table, seed, train, page)
+    # every file is written under a staging directory and put in place at the end, so
+    # that a command stopped while rendering leaves the earlier outputs as they were
+    with staged(out) as staging:
+        if out is not None:
+            write_results(staging.path(out), reports, table, env)
+        rendered = None
+        no_video_of = None
+        if video is not None:
+            solving = next((r for r in reports if r.num_solved), reports[0])
+            if task is not None:
+                solving = reports[0]
+            try:
+                rendered = render_longest_solved(
+                    env, solving, staging.path(video), seed, train, task, camera
+                )
+            except VideoError:
+                raise
+            except ValueError as err:
+                raise TaskNotEvaluatedError(str(err)) from None
+            if rendered is None:
+                no_video_of = solving.label
+            else:
+                rendered = dataclasses.replace(rendered, video=video, png=video.with_suffix(".png"))
+        written = None
+        if out is not None:
+            if rendered is not None:  # the page shows it, not a second rendering of it
+                key = (solving.approach, rendered.outcome.index)
+                page = dataclasses.replace(page, rendered={key: (rendered.video, rendered.png)})
+            written = write_eval_page(env, reports, out, table, seed, train, page, staging.path)
     return EvaluationReported(table, out, rendered, no_video_of, written)

@@ -9,7 +9,7 @@ them. A machine that cannot render (no OSMesa) still gets the page, without vide
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -64,8 +64,10 @@ def write_eval_page(
     seed: int,
     train: bool,
     request: PageRequest = DEFAULT_PAGE,
+    place: Callable[[Path], Path] = lambda path: path,
 ) -> PageWritten:
-    """Render the chosen videos (within the budget) and write ``out/report.html``."""
+    """Render the chosen videos (within the budget) and write ``out/report.html``, each
+    file to ``place(its path)`` (a staging directory: links are made to the path)."""
     videos, posters, notes = {}, {}, []
     wanted = (
         []
@@ -86,7 +88,9 @@ def write_eval_page(
             break
         path = out / VIDEO_DIR / video_name(report.approach, outcome.index)
         try:
-            render_longest_solved(env, report, path, seed, train, outcome.index, request.camera)
+            render_longest_solved(
+                env, report, place(path), seed, train, outcome.index, request.camera
+            )
         except VideoError as err:
             notes.append(f"videos not rendered: {err}")
             break
@@ -105,4 +109,5 @@ def write_eval_page(
         if r.task is not None
     }
     media = PageMedia(videos, posters, recordings, tuple(notes))
-    return PageWritten(write_page(out, reports, table, media), done, left_out)
+    written = write_page(place(out), reports, table, media)
+    return PageWritten(out / written.name, done, left_out)

@@ -136,3 +136,43 @@ def test_learn_stopped_while_its_baselines_train_or_save_keeps_the_old_skills_wh
     assert (code, capsys.readouterr().err.strip()) == (130, "bpns: interrupted")
     assert {p.name: _digest(p) for p in out.iterdir() if p.is_file()} == before
     assert [p.name for p in tmp_path.iterdir()] == ["skills"]  # no temporary left behind
+
+
+def _tree(root: Path) -> dict[str, str]:
+    return {str(p.relative_to(root)): _digest(p) for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_eval_stopped_while_it_renders_its_report_keeps_every_earlier_output(
+    tmp_path, monkeypatch, capsys
+):
+    from bpns.cli import main
+    from bpns.workflow import report_page
+
+    out, video = tmp_path / "ev", tmp_path / "solved.mp4"
+    argv = ["eval", "--env", "cover", "--approach", "oracle", "-n", "1", "--workers", "1"]
+    argv += ["--out", str(out), "--video", str(video), "--report-videos", "none"]
+    assert main(argv) == 0
+    before = {**_tree(out), "video": _digest(video), "png": _digest(video.with_suffix(".png"))}
+
+    def stopped(*args, **kwargs):  # Ctrl-C after the results and the video were written
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(report_page, "write_page", stopped)
+    capsys.readouterr()
+    code = main([*argv, "--overwrite", "--seed", "1"])
+    assert (code, capsys.readouterr().err.strip()) == (130, "bpns: interrupted")
+    after = {**_tree(out), "video": _digest(video), "png": _digest(video.with_suffix(".png"))}
+    assert after == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ev", "solved.mp4", "solved.png"]
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no staging left
+
+
+def test_deferred_signals_wait_for_the_end_of_the_block():
+    from bpns.atomic import deferred_signals
+
+    seen = []
+    with pytest.raises(KeyboardInterrupt):
+        with deferred_signals():
+            signal.raise_signal(signal.SIGINT)
+            seen.append("after the signal, inside the block")
+    assert seen == ["after the signal, inside the block"]
