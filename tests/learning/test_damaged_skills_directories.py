@@ -131,6 +131,15 @@ CASES = [
     (_index(lambda i: i["skills"][0].__setitem__("horizn", 5)), r"unknown key 'horizn'"),
     (_index(lambda i: i.__setitem__("note", "mine")), r"the index has the unknown key 'note'"),
     (_index(lambda i: i.pop("predicates")), r"the index lacks the key 'predicates'"),
+    (_index(lambda i: i["config"].pop("settle_steps")), r"config lacks the key 'settle_steps'"),
+    (
+        _index(lambda i: i["config"]["policy"].pop("num_steps")),
+        r"config network lacks the key 'num_steps'",
+    ),
+    (
+        lambda path: shutil.copy(path / "Holding.policy.npz", path / "Bogus.policy.npz"),
+        r"Bogus.policy.npz is the weights of no skill in skills.json",
+    ),
     (
         _index(lambda i: i["config"].__setitem__("refuse_novel_start", False)),
         r"config has the unknown key 'refuse_novel_start'",
@@ -164,3 +173,15 @@ def test_symlink_inside_the_directory_is_allowed(skills_copy):
     os.rename(skills_copy / "Holding.policy.npz", skills_copy / "Op0.policy.real.npz")
     os.symlink("Op0.policy.real.npz", skills_copy / "Holding.policy.npz")
     assert len(load_skills(skills_copy, toy.PREDICATES, toy.TYPES).skills) == 2
+
+
+def test_a_version_1_directory_lacking_a_setting_added_since_still_loads(skills_copy):
+    def older(index):  # saved before the config recorded every setting
+        index["version"] = 1
+        index["config"].pop("correlated_subgoal_noise")
+        index["config"]["policy"].pop("input_margin")
+
+    _edit_index(skills_copy, older)
+    learned = load_skills(skills_copy, toy.PREDICATES, toy.TYPES)
+    assert len(learned.skills) == 2
+    assert learned.config.correlated_subgoal_noise is False

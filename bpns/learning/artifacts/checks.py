@@ -247,14 +247,22 @@ def check_index_schema(index: Mapping[str, Any]) -> None:
     _require(not duplicates, f"two skills share the operator name {duplicates}")
 
 
-def check_json_fields(values: Mapping[str, Any], cls: type, where: str) -> None:
+def check_json_fields(
+    values: Mapping[str, Any], cls: type, where: str, complete: bool = True
+) -> None:
     """Each value whose key is a field of dataclass ``cls`` has a JSON type its
     annotation admits (int, float, bool, tuple of int, optional ones, or an object),
-    and no key is another (a setting mistyped by hand would be ignored). A field may be
-    missing: directories saved before it existed load with its default."""
-    unknown = sorted(values.keys() - {f.name for f in dataclasses.fields(cls)})
+    and no key is another (a setting mistyped by hand would be ignored). With
+    ``complete`` every field must be there (one removed by hand would be silently
+    defaulted); without, a field may be missing (a format version saved before it
+    existed)."""
+    fields = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(values.keys() - fields)
     if unknown:
         raise ValueError(f"{where} has the unknown key {unknown[0]!r}")
+    missing = sorted(fields - values.keys())
+    if complete and missing:
+        raise ValueError(f"{where} lacks the key {missing[0]!r}")
     for f in dataclasses.fields(cls):
         if f.name not in values:
             continue

@@ -49,7 +49,11 @@ from bpns.learning.samplers import CurrentStateSampler, LearnedSampler
 from bpns.structs import LiftedAtom, Predicate, Skill, STRIPSOperator, Type, Variable
 
 FORMAT = "bpns-skills"
-VERSION = 1
+# Version 2 records every setting of the config: a key missing from it was removed by
+# hand and is refused. Version 1 directories, saved while settings were still being
+# added, may lack the newer ones and load with the values they had before them.
+VERSION = 2
+SUPPORTED_VERSIONS = (1, 2)
 INDEX = "skills.json"
 DOMAIN = "domain.pddl"
 
@@ -192,7 +196,8 @@ def _read_index(directory: Path) -> dict[str, Any]:
     if (
         not isinstance(index, dict)
         or index.get("format") != FORMAT
-        or index.get("version") != VERSION
+        or index.get("version") not in SUPPORTED_VERSIONS
+        or isinstance(index.get("version"), bool)
     ):
         got = (index.get("format"), index.get("version")) if isinstance(index, dict) else None
         raise ArtifactError(
@@ -223,11 +228,14 @@ def load_skills(
         skills = tuple(
             _read_skill(e, directory, pred_map, type_map, given_by_name) for e in index["skills"]
         )
+        _refuse_stray_weights(directory, index)
         return LearnedSkills(
             skills=skills,
             predicates=frozenset(pred_map.values()),
-            config=_config_from_json(index["config"]),
-            stats=None if index.get("stats") is None else _stats_from_json(index["stats"]),
+            config=_config_from_json(index["config"], complete=index["version"] >= 2),
+            stats=None
+            if index.get("stats") is None
+            else _stats_from_json(index["stats"], complete=index["version"] >= 2),
         )
     except ArtifactError:
         raise
@@ -247,6 +255,23 @@ def load_skills(
         raise ArtifactError(
             f"{directory}: damaged skills directory ({type(err).__name__}: {err})"
         ) from None
+
+
+def _refuse_stray_weights(directory: Path, index: Mapping[str, Any]) -> None:
+    """A ``<Op>.policy.npz`` or ``<Op>.sampler.npz`` that no skill names: the index and
+    the weights disagree (a skill's entry removed by hand, or weights copied in), so
+    which skills the directory holds is in doubt."""
+    named = {e.get(k) for e in index["skills"] for k in ("policy", "sampler")}
+    try:
+        names = sorted(p.name for p in directory.iterdir())
+    except OSError as err:
+        raise ArtifactError(f"{directory}: cannot list the skills directory ({err})") from None
+    for name in names:
+        if name.endswith((".policy.npz", ".sampler.npz")) and name not in named:
+            raise ArtifactError(
+                f"{directory}: {name} is the weights of no skill in {INDEX} (edited by "
+                "hand?); remove the file, or learn the skills again"
+            )
 
 
 def _bind_types(saved: list[dict], types: Iterable[Type], where: Path) -> dict[str, Type]:
@@ -380,9 +405,9 @@ def _from_arrays(cls: Any, path: Path, allowed: Any) -> Any:
         raise ValueError(f"{path.name} lacks the array {err.args[0]!r}") from None
 
 
-def _config_from_json(d: Mapping[str, Any]) -> LearningConfig:
-    checks.check_json_fields(d, LearningConfig, "config")
-    nets = {k: _mlp_config(d[k]) for k in ("policy", "generator", "classifier")}
+def _config_from_json(d: Mapping[str, Any], complete: bool = True) -> LearningConfig:
+    checks.check_json_fields(d, LearningConfig, "config", complete)
+    nets = {k: _mlp_config(d[k], complete) for k in ("policy", "generator", "classifier")}
     fields = {f.name for f in dataclasses.fields(LearningConfig)}
     rest = {k: v for k, v in d.items() if k in fields and k not in nets}
     rest.setdefault("share_effect_data", False)  # skills saved before these existed
@@ -391,15 +416,15 @@ def _config_from_json(d: Mapping[str, Any]) -> LearningConfig:
     return LearningConfig(**rest, **nets)
 
 
-def _mlp_config(d: Mapping[str, Any]) -> MLPConfig:
-    checks.check_json_fields(d, MLPConfig, "config network")
+def _mlp_config(d: Mapping[str, Any], complete: bool = True) -> MLPConfig:
+    checks.check_json_fields(d, MLPConfig, "config network", complete)
     return MLPConfig(**{**d, "hidden_sizes": tuple(d["hidden_sizes"])})
 
 
-def _stats_from_json(d: Mapping[str, Any]) -> LearningStats:
-    checks.check_json_fields(d, LearningStats, "stats")
+def _stats_from_json(d: Mapping[str, Any], complete: bool = True) -> LearningStats:
+    checks.check_json_fields(d, LearningStats, "stats", complete)
     for s in d["skills"]:
-        checks.check_json_fields(s, SkillStats, "stats.skills")
+        checks.check_json_fields(s, SkillStats, "stats.skills", complete)
     return LearningStats(
         **{k: v for k, v in d.items() if k not in ("skills", "stage_seconds")},
         skills=tuple(SkillStats(**s) for s in d["skills"]),
