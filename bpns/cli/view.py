@@ -36,8 +36,12 @@ def configure(p: argparse.ArgumentParser) -> None:
         nargs="+",
         help="record these cameras' images (implies --images); 'all' tiles every camera",
     )
-    p.add_argument("--width", type=positive, default=320, help="camera image width")
-    p.add_argument("--height", type=positive, default=240, help="camera image height")
+    p.add_argument(
+        "--width", type=positive, help="camera image width (with --images; default: 320)"
+    )
+    p.add_argument(
+        "--height", type=positive, help="camera image height (with --images; default: 240)"
+    )
     p.add_argument("--env", help="environment (default: the one named in the file)")
     p.add_argument(
         "--open",
@@ -55,10 +59,13 @@ def run(args: argparse.Namespace) -> int:
     out = args.out or Path(f"{name}.rrd")
     check_output_file(out, "--out", args.overwrite, [args.file])
     cameras = list(args.camera or ([default_camera(env)] if args.images else []))
-    with claimed("--out", out), writing(out, "--out"):
-        recorded = record_file(
-            args.file, env, out, args.task, args.demo, cameras, (args.width, args.height)
+    if not cameras and (args.width is not None or args.height is not None):
+        raise UserError(
+            "--width and --height size the camera images: pass --images or --camera too"
         )
+    size = (args.width or 320, args.height or 240)
+    with claimed("--out", out), writing(out, "--out"):
+        recorded = record_file(args.file, env, out, args.task, args.demo, cameras, size)
     print(recorded.line())
     if args.open:
         _open(out)

@@ -65,6 +65,14 @@ def test_view_refuses_to_replace_an_output_or_write_a_non_rrd(cover_demo_file, t
     assert "give a .rrd name" in line
 
 
+def test_view_refuses_an_image_size_without_images(cover_demo_file, tmp_path, capsys):
+    out = tmp_path / "demo.rrd"
+    for flag in ("--width", "--height"):
+        line = error_line(["view", str(cover_demo_file), "--out", str(out), flag, "100000"], capsys)
+        assert "size the camera images: pass --images or --camera too" in line
+    assert not out.exists()
+
+
 @pytest.mark.parametrize(
     ("module", "argv", "extra"),
     [
