@@ -12,7 +12,9 @@ Layout::
       attrs: world (the task's MJCF text), goal (JSON [[predicate, [objects]]]),
              objects (JSON [[name, type]]), horizon, num_samples
 
-Files are written atomically (temp file + rename); reading validates structure and
+``num_demos`` is for other readers of the file: bpns never reads it, and counts the
+``demo_<i>`` groups instead (an edited attribute misleads nothing here). Files are
+written atomically (temp file + rename); reading validates structure and
 turns h5py's low-level errors into one :class:`DatasetError` that names the file.
 Learning reads only features, actions and goals: ``features_only=True`` loads those
 (3-5x faster, ``scripts/bench_loading.py``) without compiling each demo's scene (the
