@@ -147,8 +147,12 @@ class RolloutsFile:
         if root.get("kind") != KIND:
             raise DatasetError(f"{path}: not a rollouts file (written by `bpns eval --out`)")
         _require(path, "the file", root, ROOT_ATTRIBUTES)
+        # a file that records its worlds records each row's: a row without one would
+        # replay in the file's nominal physics though it ran in a perturbed world (rows
+        # fall back to the file's perturbation only in files older than per-task worlds)
+        row_attributes = ROW_ATTRIBUTES + (("physics",) if "worlds" in root else ())
         for i, d in enumerate(demos):
-            _require(path, f"row demo_{i}", d, ROW_ATTRIBUTES)
+            _require(path, f"row demo_{i}", d, row_attributes)
         try:
             perturbation = Perturbation.from_json(str(root.get("perturbation", "{}")))
             worlds = (

@@ -228,7 +228,12 @@ def tiny_rollouts(tmp_path_factory):
 
 @pytest.mark.parametrize(
     ("group", "attribute", "where"),
-    [("/", "approach", "the file"), ("data/demo_0", "plan", "row demo_0")],
+    [
+        ("/", "approach", "the file"),
+        ("data/demo_0", "plan", "row demo_0"),
+        # the world the row ran in: without it, it would replay in the nominal physics
+        ("data/demo_0", "physics", "row demo_0"),
+    ],
 )
 def test_replay_and_render_name_the_row_and_attribute_a_rollouts_file_lacks(
     tiny_rollouts, tmp_path, capsys, group, attribute, where
@@ -243,3 +248,16 @@ def test_replay_and_render_name_the_row_and_attribute_a_rollouts_file_lacks(
         assert line.startswith("bpns: error: ")
         assert f"{where} lacks the attribute '{attribute}'" in line
         assert "bpns eval --out" in line
+
+
+def test_a_row_of_a_file_older_than_per_task_worlds_replays_in_the_file_s_physics(
+    tiny_rollouts, tmp_path
+):
+    path = tmp_path / "rollouts_oracle.h5"
+    shutil.copy(tiny_rollouts, path)
+    with h5py.File(path, "a") as f:  # as written before rows recorded their worlds
+        del f.attrs["worlds"]
+        del f["data/demo_0"].attrs["physics"]
+        f.attrs["perturbation"] = Perturbation(mass_scale=1.5).to_json()
+    (row,) = RolloutsFile.read(path).rows
+    assert row.physics == Perturbation(mass_scale=1.5)
