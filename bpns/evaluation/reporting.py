@@ -151,11 +151,13 @@ def render_longest_solved(
     train: bool,
     task: int | None = None,
     camera: str | None = None,
+    deadline: float | None = None,
 ) -> SolvedVideo | None:
     """Re-simulate :func:`longest_solved` (or the rollout of eval task ``task``, solved
     or failed) from its task's initial state under the report's physics and render it to
     ``video`` with captions and a PNG of its end; None when nothing was solved and no
-    task was named. ``camera`` defaults to the environment's. Raises
+    task was named. ``camera`` defaults to the environment's; past ``deadline`` (a
+    ``time.time()``) rendering stops with ``bpns.execution.video.OutOfTimeError``. Raises
     ``bpns.execution.video.VideoError`` when rendering fails, ValueError for a task not
     evaluated."""
     if task is None:
@@ -182,6 +184,7 @@ def render_longest_solved(
                 video,
                 png,
                 report.eval_set,
+                deadline,
             )
         )
     return SolvedVideo(video, png, n, report.label, outcome)
@@ -197,6 +200,7 @@ def _render_task(
     video: Path,
     png: Path,
     eval_set: EvalSet,
+    deadline: float | None = None,
 ) -> int:
     """Re-simulate ``outcome``'s rollout from its task of the seeded stream (of
     ``eval_set``) and render it."""
@@ -216,4 +220,5 @@ def _render_task(
         png=png,
         physics=physics.label(),
         events=rollout.events,
+        deadline=deadline,
     )

@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import os
 import shutil
+import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 
@@ -29,6 +30,19 @@ from bpns.structs import State
 class VideoError(BpnsError, RuntimeError):
     """Rendering or encoding failed (no OpenGL backend, no ffmpeg, a bad camera, a full
     disk ...)."""
+
+
+class OutOfTimeError(VideoError):
+    """A video's rendering passed its deadline and was dropped (nothing written)."""
+
+
+def _until(frames: Iterable[np.ndarray], deadline: float | None) -> Iterator[np.ndarray]:
+    """``frames``, stopped with :class:`OutOfTimeError` once ``time.time()`` passes
+    ``deadline`` (None: never)."""
+    for frame in frames:
+        if deadline is not None and time.time() > deadline:
+            raise OutOfTimeError("the rendering time budget ran out")
+        yield frame
 
 
 def write_mp4(path: str | os.PathLike, frames: Iterable[np.ndarray], fps: int = 30) -> int:
@@ -110,9 +124,12 @@ def render_video(
     fps: int = 30,
     captions: Sequence[str] | None = None,
     final_caption: str | None = None,
+    deadline: float | None = None,
 ) -> int:
     """Render ``states`` to a real-time mp4 (frames resampled from the control rate) and
-    optionally a PNG of the last frame; returns the number of frames written.
+    optionally a PNG of the last frame; returns the number of frames written. Past
+    ``deadline`` (a ``time.time()``) it stops with :class:`OutOfTimeError`, writing
+    nothing.
 
     ``captions[i]`` is drawn into the frames of ``states[i]``; ``final_caption`` into the
     last state's frame, held for ``HOLD_SECONDS`` at the end (and in the PNG)."""
@@ -120,7 +137,7 @@ def render_video(
     index = [min(len(states) - 1, int(i * control_hz / fps)) for i in range(n_frames)]
     picked = [states[i] for i in index]
     try:
-        frames = env.render(picked, camera, width, height)
+        frames = _until(env.render(picked, camera, width, height), deadline)
         if captions is not None or final_caption is not None:
             frames = _captioned(frames, index, captions, final_caption, int(HOLD_SECONDS * fps))
         last = None
@@ -134,6 +151,8 @@ def render_video(
         n = write_mp4(out, keep_last(), fps=fps)
         if png is not None and last is not None:
             write_png(png, last)
+    except VideoError:
+        raise
     except (RuntimeError, ValueError) as err:
         raise VideoError(str(err)) from None
     return n
@@ -262,6 +281,7 @@ def render_rollout(
     png: str | os.PathLike | None = None,
     physics: str = "",
     events: Sequence[Event] = (),
+    deadline: float | None = None,
 ) -> int:
     """A rollout's video: each frame captioned with its skill and objects (and, for a
     while after each, the execution monitor's events: "replan 1: expected Holding(block0)
@@ -277,4 +297,5 @@ def render_rollout(
         png,
         captions=event_captions(step_captions(steps, len(states)), events),
         final_caption=outcome_caption(solved, reason, steps, len(states) - 1, physics),
+        deadline=deadline,
     )

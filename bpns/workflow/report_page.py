@@ -16,7 +16,7 @@ from pathlib import Path
 from bpns.env.environment import Environment
 from bpns.evaluation.evaluate import EvalReport
 from bpns.evaluation.reporting import render_longest_solved
-from bpns.execution.video import VideoError
+from bpns.execution.video import OutOfTimeError, VideoError
 from bpns.inspect.html_report import PageMedia, relative_link, write_page
 from bpns.workflow.inspect import Recorded, chosen_outcomes
 
@@ -87,10 +87,13 @@ def write_eval_page(
         if time.monotonic() - started >= request.budget:
             break
         path = out / VIDEO_DIR / video_name(report.approach, outcome.index)
+        deadline = time.time() + request.budget - (time.monotonic() - started)
         try:
             render_longest_solved(
-                env, report, place(path), seed, train, outcome.index, request.camera
+                env, report, place(path), seed, train, outcome.index, request.camera, deadline
             )
+        except OutOfTimeError:  # a long rollout: stopped at the budget, not after it
+            break
         except VideoError as err:
             notes.append(f"videos not rendered: {err}")
             break

@@ -261,3 +261,38 @@ def test_a_row_of_a_file_older_than_per_task_worlds_replays_in_the_file_s_physic
         f.attrs["perturbation"] = Perturbation(mass_scale=1.5).to_json()
     (row,) = RolloutsFile.read(path).rows
     assert row.physics == Perturbation(mass_scale=1.5)
+
+
+def test_a_video_past_its_rendering_deadline_stops_and_writes_nothing(
+    cover_env, failed_report, tmp_path
+):
+    from bpns.evaluation.reporting import render_longest_solved
+    from bpns.execution.video import OutOfTimeError
+
+    mp4 = tmp_path / "late.mp4"
+    with pytest.raises(OutOfTimeError):  # raised in the rendering worker, seen here
+        render_longest_solved(cover_env, failed_report, mp4, 7, False, task=0, deadline=0.0)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_report_s_video_budget_bounds_a_video_under_way(
+    cover_env, failed_report, tmp_path, monkeypatch
+):
+    from bpns.evaluation.evaluate import markdown_table
+    from bpns.workflow import report_page
+
+    deadlines = []
+
+    def render(*args):  # a long rollout whose rendering reaches the deadline it was given
+        deadlines.append(args[-1])
+        raise video.OutOfTimeError("the rendering time budget ran out")
+
+    monkeypatch.setattr(report_page, "render_longest_solved", render)
+    request = report_page.PageRequest(videos="all", budget=60.0)
+    page = report_page.write_eval_page(
+        cover_env, [failed_report], tmp_path, markdown_table([failed_report]), 7, False, request
+    )
+    assert (page.videos, page.left_out) == (0, 1)
+    assert len(deadlines) == 1 and deadlines[0] is not None
+    assert "1 videos left out after 60 s" in (tmp_path / "report.html").read_text()
+    assert not (tmp_path / "videos").exists()
