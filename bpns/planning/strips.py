@@ -141,16 +141,22 @@ def ground(
         by_type.setdefault(o.type, []).append(o)
     reached: set[GroundAtom] = set(init_atoms)
     reached_by_pred: dict = {}
+    index: dict = {}  # (predicate, position, object) -> indices into reached_by_pred's list
     for a in sorted(reached):
-        reached_by_pred.setdefault(a.predicate, []).append(a.objects)
+        _reach(a, reached_by_pred, index)
 
     found: dict[tuple[int, tuple[Object, ...]], GroundOperator] = {}
+    # semi-naive: after the first pass a binding is new only if one of its preconditions
+    # was reached since the previous pass began (index >= that pass' length of its list);
+    # every other binding was already enumerated then
+    since: dict | None = None
     changed = True
     while changed:
         changed = False
+        marks = {pred: len(objs) for pred, objs in reached_by_pred.items()}
         for k, op in enumerate(operators):
             new_ops = []
-            for objs in _bindings(op, reached_by_pred, by_type, deadline):
+            for objs in _bindings(op, reached_by_pred, by_type, deadline, since, index):
                 if (k, objs) not in found:
                     new_ops.append((k, objs))
             for k_objs in new_ops:
@@ -158,8 +164,9 @@ def ground(
                 found[k_objs] = gop
                 for a in sorted(gop.add_effects - reached):
                     reached.add(a)
-                    reached_by_pred.setdefault(a.predicate, []).append(a.objects)
+                    _reach(a, reached_by_pred, index)
                     changed = True
+        since = marks
     ordered = sorted(
         found.items(),
         key=lambda kv: (kv[1].operator.sort_name, kv[0][0], tuple(o.name for o in kv[0][1])),
@@ -167,17 +174,33 @@ def ground(
     return GroundProblem.from_ground_operators((g for _, g in ordered), init_atoms, goal)
 
 
+def _reach(atom: GroundAtom, reached_by_pred: dict, index: dict) -> None:
+    """Append ``atom`` to its predicate's list of reached atoms and index it by each of
+    its (position, object) pairs."""
+    atoms = reached_by_pred.setdefault(atom.predicate, [])
+    for position, obj in enumerate(atom.objects):
+        index.setdefault((atom.predicate, position, obj), []).append(len(atoms))
+    atoms.append(atom.objects)
+
+
 def _bindings(
     op: STRIPSOperator,
     reached_by_pred: dict,
     by_type: dict,
     deadline: float | None,
+    since: dict | None = None,
+    index: dict | None = None,
 ) -> Iterator[tuple[Object, ...]]:
     """Injective, typed parameter tuples for which every precondition is already reached.
 
     Preconditions are matched one at a time against reached atoms (a join), so the cost
     follows the number of reached atoms, not |objects|^arity; parameters that occur in no
-    precondition range over all remaining objects of their type.
+    precondition range over all remaining objects of their type. With ``since`` (a
+    length per predicate's list of reached atoms) only tuples with at least one
+    precondition at or past that length are yielded, each once: the first such
+    precondition d matches new atoms only, those before it old atoms only. With
+    ``index`` (see :func:`_reach`) a precondition with a bound parameter is matched
+    only against the atoms that have its object there, not every atom of its predicate.
     """
     # Most constraining first: high arity binds more variables per match.
     pres: list[LiftedAtom] = sorted(op.preconditions, key=lambda a: (-len(a.variables), str(a)))
@@ -201,14 +224,29 @@ def _bindings(
             del binding[var]
             used.discard(obj)
 
-    def match(i: int) -> Iterator[tuple[Object, ...]]:
+    def match(i: int, delta: int) -> Iterator[tuple[Object, ...]]:
         if i == len(pres):
             yield from free_params(0)
             return
         check_deadline(deadline)
         atom = pres[i]
         candidates = reached_by_pred.get(atom.predicate, ())
-        for n in range(len(candidates)):  # the list may grow later; index what exists now
+        # the list may grow later; index what exists now
+        indices = range(len(candidates))
+        if since is not None and delta >= 0:
+            mark = since.get(atom.predicate, 0)
+            indices = range(min(mark, len(candidates))) if i < delta else indices
+            indices = range(mark, len(candidates)) if i == delta else indices
+        if index is not None:
+            keys = [
+                (atom.predicate, position, binding[var])
+                for position, var in enumerate(atom.variables)
+                if var in binding
+            ]
+            if keys:
+                shortest = min((index.get(key, ()) for key in keys), key=len)
+                indices = [n for n in shortest if indices.start <= n < indices.stop]
+        for n in indices:
             objs = candidates[n]
             bound: list[Variable] = []
             ok = True
@@ -225,8 +263,13 @@ def _bindings(
                     ok = False
                     break
             if ok:
-                yield from match(i + 1)
+                yield from match(i + 1, delta)
             for var in bound:
                 used.discard(binding.pop(var))
 
-    yield from match(0)
+    if since is None:
+        yield from match(0, -1)
+        return
+    for d, atom in enumerate(pres):  # the first precondition matched to a new atom
+        if len(reached_by_pred.get(atom.predicate, ())) > since.get(atom.predicate, 0):
+            yield from match(0, d)

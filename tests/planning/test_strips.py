@@ -131,3 +131,81 @@ def test_grounding_orders_operators_by_their_order_key_so_renaming_keeps_plans()
     assert [(o.operator.order_key, o.objects) for o in after.operators] == [
         (o.name, o.objects) for o in before.operators
     ]
+
+
+def _naive_ground(operators, objects, init_atoms, goal):
+    """The reference: every pass enumerates every binding again, until nothing is new."""
+    from bpns.planning.strips import _bindings
+
+    by_type: dict = {}
+    for o in sorted(objects):
+        by_type.setdefault(o.type, []).append(o)
+    reached = set(init_atoms)
+    by_pred: dict = {}
+    for a in sorted(reached):
+        by_pred.setdefault(a.predicate, []).append(a.objects)
+    found: set = set()
+    changed = True
+    while changed:
+        changed = False
+        for op in operators:
+            for objs in list(_bindings(op, by_pred, by_type, None)):
+                g = op.ground(objs)
+                found.add(g)
+                for a in sorted(g.add_effects - reached):
+                    reached.add(a)
+                    by_pred.setdefault(a.predicate, []).append(a.objects)
+                    changed = True
+    return found
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_grounding_reaches_the_same_operators_as_enumerating_every_binding_each_pass(seed):
+    """Rooms linked at random, doors to unlock with keys found in rooms: joins whose
+    preconditions become reachable in different passes (the semi-naive fixpoint)."""
+    rng = np.random.default_rng(seed)
+    room, key = Type("room", ("v",)), Type("key", ("v",))
+    r1, r2, k = Variable("?a", room), Variable("?b", room), Variable("?k", key)
+    at, link, lies, has, opened = (
+        Predicate("At", (room,), lambda s, o: False),
+        Predicate("Link", (room, room), lambda s, o: False),
+        Predicate("KeyIn", (key, room), lambda s, o: False),
+        Predicate("Has", (key,), lambda s, o: False),
+        Predicate("Unlocked", (room, room), lambda s, o: False),
+    )
+    ops = [
+        STRIPSOperator(
+            "Move",
+            (r1, r2),
+            frozenset({LiftedAtom(at, (r1,)), LiftedAtom(opened, (r1, r2))}),
+            frozenset({LiftedAtom(at, (r2,))}),
+            frozenset({LiftedAtom(at, (r1,))}),
+        ),
+        STRIPSOperator(
+            "Unlock",
+            (r1, r2, k),
+            frozenset({LiftedAtom(at, (r1,)), LiftedAtom(link, (r1, r2)), LiftedAtom(has, (k,))}),
+            frozenset({LiftedAtom(opened, (r1, r2))}),
+            frozenset(),
+        ),
+        STRIPSOperator(
+            "Take",
+            (k, r1),
+            frozenset({LiftedAtom(at, (r1,)), LiftedAtom(lies, (k, r1))}),
+            frozenset({LiftedAtom(has, (k,))}),
+            frozenset(),
+        ),
+    ]
+    rooms = [Object(f"r{i}", room) for i in range(9)]
+    keys = [Object(f"k{i}", key) for i in range(3)]
+    init = {GroundAtom(at, (rooms[0],)), GroundAtom(lies, (keys[0], rooms[0]))}
+    for i, a in enumerate(rooms):
+        for b in rooms[i + 1 :]:
+            if rng.random() < 0.35:
+                init |= {GroundAtom(link, (a, b)), GroundAtom(link, (b, a))}
+    for kk in keys[1:]:
+        init.add(GroundAtom(lies, (kk, rooms[int(rng.integers(1, 9))])))
+    goal = {GroundAtom(at, (rooms[-1],))}
+    problem = ground(ops, rooms + keys, init, goal)
+    assert set(problem.operators) == _naive_ground(ops, rooms + keys, init, goal)
+    assert len(problem.operators) > 3
