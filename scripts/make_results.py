@@ -274,7 +274,11 @@ def experiment_summary() -> str:
     rows: list[dict] = []
     for path in sorted(EXPERIMENTS.glob("*/results.json")):
         sweep = path.parent.name
-        rows += [{**r, "sweep": sweep} for r in json.loads(path.read_text())["rows"]]
+        rows += [  # sweeps along an axis have a row per level: their own sections say them
+            {**r, "sweep": sweep}
+            for r in json.loads(path.read_text())["rows"]
+            if "objects" not in r and "perturbation" not in r
+        ]
     learned = [(r["env"], r["demos"], r["sweep"]) for r in rows if r["demos"] is not None]
     columns = sorted(set(learned))
     shared = {(e, n) for e, n, _ in columns if sum((e, n) == c[:2] for c in columns) > 1}
