@@ -1,7 +1,7 @@
 """Which learned skill is weak, and why: closed-loop tests of each skill on held-out demos.
 
     python scripts/skill_diagnostics.py SKILLS DEMOS --first 900 --count 100 [--samples 5]
-        [--perturb latency=2 obs_noise=0.005] [--horizon-scale 2]
+        [--perturb latency=2 obs_noise=0.005] [--horizon-scale 2] [--world-speed 0.6]
 
 For every segment of the held-out demonstrations ``DEMOS[first : first + count]`` (not
 used for learning when ``first`` is past ``bpns learn --limit``) that a learned skill
@@ -22,8 +22,8 @@ step's subgoal offset (subgoal - current, on the subgoal dims) and the policy's 
 
 ``--perturb`` rolls every skill out in a world of fixed perturbed physics instead (the
 ``bpns eval --perturb`` names, one value each; the start state is carried into it as the
-closed loop does), with each skill's horizon times ``--horizon-scale`` (the world's
-``ExecutionConfig.horizon_scale``): which skill a world breaks.
+closed loop does), with each skill's horizon times ``--horizon-scale`` and its motion
+times ``--world-speed`` (the world's ``ExecutionConfig``): which skill a world breaks.
 
 Failure reasons are the planner's (``bpns.execution.failures``). Nothing is written; the table
 goes to stdout. The environment is the one the skills directory records.
@@ -76,6 +76,7 @@ def main() -> None:
     )
     parser.add_argument("--horizon-scale", type=float, default=1.0)
     parser.add_argument("--show-stuck", type=int, default=0, metavar="N")
+    parser.add_argument("--world-speed", type=float, default=1.0)
     args = parser.parse_args()
 
     env, learned = load_learned(args.skills)
@@ -84,9 +85,8 @@ def main() -> None:
     settle = learning_config_for(env).settle_steps
     config = planning_config_for(env)
     world = perturbed(env, parse_perturbation(args.perturb))
-    limits = ExecutionConfig(horizon_scale=args.horizon_scale).world_limits(
-        RolloutConfig.of(config)
-    )
+    execution = ExecutionConfig(horizon_scale=args.horizon_scale, world_speed=args.world_speed)
+    limits = execution.world_limits(RolloutConfig.of(config))
     rng = np.random.default_rng(args.seed)
     tallies: dict[str, SkillTally] = defaultdict(SkillTally)
     indices = range(args.first, args.first + args.count)
@@ -136,7 +136,7 @@ def main() -> None:
     where = f", world {' '.join(args.perturb)}" if args.perturb else ""
     print(
         f"{args.skills}: held-out demos {args.first}..{args.first + args.count - 1}{where}"
-        f", horizon x{args.horizon_scale:g}"
+        f", horizon x{args.horizon_scale:g}, world speed {args.world_speed:g}"
     )
     print(
         "| skill | segments | demo subgoal | sampled | steps (sampled ok / demo) "

@@ -36,6 +36,12 @@ class ExecutionConfig:
                       abandoning a skill that is still moving (a softer arm, a delayed
                       command) costs a replan from a state the plan never expected.
                       A skill that stops moving still ends at once (``stuck``).
+    world_speed:      a skill executing in the world applies this fraction of each
+                      commanded motion (the environment's ``motion_dims``; the fingers as
+                      commanded). A cloned policy's law is a gain on the distance to its
+                      subgoal; a command that arrives late overshoots by that gain, so a
+                      slower arm stays stable under more latency. Refinement in the model
+                      moves at full speed; 1.0: as commanded.
     """
 
     closed_loop: bool = True
@@ -43,6 +49,7 @@ class ExecutionConfig:
     rerefine_atol: float | None = 0.01
     watch_atoms: bool = True
     horizon_scale: float = 2.0
+    world_speed: float = 1.0
 
     def __post_init__(self) -> None:
         if isinstance(self.max_replans, bool) or not isinstance(self.max_replans, int):
@@ -59,11 +66,13 @@ class ExecutionConfig:
             raise ExecutionConfigError(
                 f"horizon_scale must be finite and >= 1, got {self.horizon_scale}"
             )
+        if not (0.0 < self.world_speed <= 1.0):
+            raise ExecutionConfigError(f"world_speed must be in (0, 1], got {self.world_speed}")
 
     def world_limits(self, limits: RolloutConfig) -> RolloutConfig:
         """``limits`` (the planner's, for the model) as a skill executing in the world
-        gets them: its horizon times ``horizon_scale``."""
-        return dataclasses.replace(limits, horizon_scale=self.horizon_scale)
+        gets them: its horizon times ``horizon_scale``, its motion times ``world_speed``."""
+        return dataclasses.replace(limits, horizon_scale=self.horizon_scale, speed=self.world_speed)
 
     @property
     def mode(self) -> str:

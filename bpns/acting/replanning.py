@@ -14,9 +14,9 @@ really are: kept as it is when its subgoals still reach the goal in the model fr
 (one rollout per step), else refined again (new subgoals, same abstract plan).
 
 A step whose world start state is bit-identical to the model's, under the very same
-physics, takes over the model's segment instead of simulating it again: ``f`` is
-deterministic, so the world would reproduce it exactly (with a nominal world and model,
-closed-loop execution costs nothing).
+physics and at full speed (``world_speed`` 1), takes over the model's segment instead of
+simulating it again: ``f`` is deterministic, so the world would reproduce it exactly
+(with a nominal world and model, closed-loop execution costs nothing).
 """
 
 from __future__ import annotations
@@ -304,7 +304,8 @@ class ClosedLoopPlanner:
         """Step ``step`` in the world; None when it reached its expected atoms."""
         start = step.states[0]
         if (
-            world.state.sim is not None
+            self.execution.world_speed == 1.0  # a slowed world does not reproduce the model
+            and world.state.sim is not None
             and start.sim is not None
             and world.state.sim.world is start.sim.world
             and np.array_equal(world.state.sim.flat, start.sim.flat)

@@ -264,6 +264,13 @@ def add_world_arguments(p: argparse.ArgumentParser) -> None:
         help="closed loop: a skill executing in the world may take this many times its "
         "learned horizon (>= 1; default: %(default)s)",
     )
+    p.add_argument(
+        "--world-speed",
+        type=float,
+        default=ExecutionConfig().world_speed,
+        help="closed loop: a skill executing in the world applies this fraction of each "
+        "commanded motion (in (0, 1]; slower is steadier under latency; default: %(default)s)",
+    )
 
 
 def world_settings(
@@ -284,8 +291,15 @@ def world_settings(
     scale = args.horizon_scale
     if not (1.0 <= scale < float("inf")):
         raise UserError(f"--horizon-scale: expected a finite number >= 1, got {scale:g}")
+    speed = args.world_speed
+    if not (0.0 < speed <= 1.0):
+        raise UserError(f"--world-speed: expected a number in (0, 1], got {speed:g}")
     execution = ExecutionConfig.of_mode(
-        args.execution, max_replans=args.max_replans, rerefine_atol=atol, horizon_scale=scale
+        args.execution,
+        max_replans=args.max_replans,
+        rerefine_atol=atol,
+        horizon_scale=scale,
+        world_speed=speed,
     )
     return worlds, model, execution
 
@@ -300,6 +314,11 @@ def run(args: argparse.Namespace) -> int:
     workers = capped_to_cores(args.workers, "--workers")
     env, learned = _evaluated_environment(args, approaches)
     _check_environment_supports(env, worlds, model, approaches)
+    if execution.world_speed != 1.0 and env.capabilities.motion_dims is None:
+        raise UserError(
+            f"--world-speed: environment {env.name!r} declares no motion_dims (Capabilities),"
+            " so its skills cannot be slowed"
+        )
     base = _planning_settings(args, env)
     request = EvalRequest(
         num_tasks=args.tasks,

@@ -117,6 +117,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "environments' own setting, off for the shipped domains)",
     )
     parser.add_argument(
+        "--world-speed",
+        type=float,
+        metavar="FRACTION",
+        help="closed-loop eval cells run with `bpns eval --world-speed FRACTION` (in (0, 1]; "
+        "default: full speed)",
+    )
+    parser.add_argument(
         "--workers",
         type=_count,
         default=1,
@@ -160,6 +167,7 @@ def sweep_config(args: argparse.Namespace) -> SweepConfig:
             executions=args.execution,
             model=args.model,
             demote_refuted=args.demote_refuted,
+            world_speed=args.world_speed,
         )
     except SweepConfigError as err:
         raise UserError(str(err)) from None
@@ -286,6 +294,8 @@ def command_line(config: SweepConfig, out: Path, args: argparse.Namespace) -> st
         argv += ["--model", config.model]
     if config.demote_refuted is not None:
         argv += ["--demote-refuted", f"{config.demote_refuted:g}"]
+    if config.world_speed is not None:
+        argv += ["--world-speed", f"{config.world_speed:g}"]
     argv += ["--workers", str(args.workers)]
     if args.backend != "pool":
         argv += ["--backend", args.backend]

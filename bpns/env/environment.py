@@ -64,6 +64,10 @@ class Capabilities:
                        ``counts`` (an :class:`ObjectCounts` within ``object_limits``; kinds
                        it does not name keep their own counts), its train tasks unchanged;
                        None: the paper set only.
+    motion_dims:       the action dims that command motion at a rate (hand translation,
+                       wrist turns, a base's offsets; not the fingers): what a world-side
+                       speed (``ExecutionConfig.world_speed``) scales; None: the
+                       environment's skills cannot be slowed.
 
     ``observe`` takes the environment because one declaration (a class attribute) serves
     every instance, including the perturbed copies ``perturbed`` returns.
@@ -81,10 +85,20 @@ class Capabilities:
     eval_sets: Mapping[str, ObjectCounts] = field(default_factory=dict)
     object_limits: Mapping[str, tuple[int, int]] = field(default_factory=dict)
     with_objects: Callable[[Environment, ObjectCounts], Environment] | None = None
+    motion_dims: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:  # read-only: one declaration shared by every instance
         if not 0.0 <= self.demo_noise < float("inf"):
             raise ValueError(f"demo_noise must be finite and >= 0, got {self.demo_noise}")
+        dims = self.motion_dims
+        if dims is not None and (
+            not dims
+            or len(set(dims)) != len(dims)
+            or not all(isinstance(d, int) and not isinstance(d, bool) and d >= 0 for d in dims)
+        ):
+            raise ValueError(
+                f"motion_dims must be distinct action indices >= 0 (or None), got {dims!r}"
+            )
         if PAPER in self.eval_sets:
             raise ValueError(f"eval set {PAPER!r} is the environment's own: do not declare it")
         object.__setattr__(self, "planning_defaults", _frozen(self.planning_defaults))

@@ -42,6 +42,9 @@ class RolloutConfig:
     # multiplies a skill's own horizon (learned from its demonstrations); the world may
     # give a skill still moving more time than refinement in the model does
     horizon_scale: float = 1.0
+    # the fraction of each commanded motion (the environment's ``motion_dims``) applied:
+    # a skill slowed in the world, where a delayed command overshoots (1.0: as commanded)
+    speed: float = 1.0
 
     @classmethod
     def of(cls, config: object) -> RolloutConfig:
@@ -136,6 +139,7 @@ class SkillExecutor:
         self.low = np.asarray(env.action_low, dtype=np.float64)
         self.high = np.asarray(env.action_high, dtype=np.float64)
         self.config = config
+        self.slowed = _motion_index(env, self.low.size) if config.speed != 1.0 else None
         self.horizon = task.horizon
         self.deadline = deadline
         self.sim_steps = 0
@@ -216,6 +220,8 @@ class SkillExecutor:
             action = checked_action(raw, low, high)
             if isinstance(action, FailureReason):
                 return action
+            if self.slowed is not None:
+                action[self.slowed] *= self.config.speed
             state = simulate(state, action)
             self.sim_steps += 1
             actions.append(action)
@@ -242,6 +248,25 @@ class SkillExecutor:
                 unchanged = 0
                 feats = new_feats
         return FailureReason.SKILL_HORIZON
+
+
+class NotSlowableError(BpnsError, ValueError):
+    """A speed below 1 asked of an environment that declares no ``motion_dims``."""
+
+
+def _motion_index(env: Environment, size: int) -> np.ndarray:
+    """The action indices a speed scales (the environment's ``motion_dims``), checked."""
+    dims = env.capabilities.motion_dims
+    if dims is None:
+        raise NotSlowableError(
+            "this environment declares no motion_dims (Capabilities), so its skills cannot "
+            "be slowed: leave the world speed at 1"
+        )
+    if max(dims) >= size:
+        raise NotSlowableError(
+            f"motion_dims {dims} name an action index beyond the action's {size} dims"
+        )
+    return np.asarray(dims, dtype=np.intp)
 
 
 def _split(f: Features) -> dict[Object, np.ndarray]:

@@ -56,6 +56,7 @@ class Cell:
     execution: str | None = None  # "closed-loop" or "open-loop" (None: not swept)
     model: str = "nominal"  # what the planner simulates, when worlds are swept
     objects: str | None = None  # eval cells of an object axis: "button=5" (bpns eval --objects)
+    world_speed: float = 1.0  # closed-loop eval cells: ExecutionConfig.world_speed
 
     @property
     def key(self) -> str:
@@ -72,6 +73,8 @@ class Cell:
                     level += f"-model-{_slug(self.model)}"
             if self.objects is not None:
                 level += f"-{self.objects.replace('=', '')}"
+            if self.world_speed != 1.0:
+                level += f"-speed{level_label(self.world_speed)}"
             return f"{EVAL}/{self.env}-{self.approach}{count}{level}-seed{self.seed}"
         if self.kind == SKILLS:
             return f"{SKILLS}/{self.env}{count}-seed{self.seed}"
@@ -109,6 +112,8 @@ class Cell:
                 s["model"] = self.model
             if self.objects is not None:  # (absent: cells stored before keep matching)
                 s["objects"] = self.objects
+            if self.world_speed != 1.0:  # (absent at full speed, likewise)
+                s["world_speed"] = self.world_speed
         return json.loads(json.dumps(s))
 
     def describe(self) -> str:
@@ -127,6 +132,8 @@ class Cell:
             parts.append(f"world {self.world or 'nominal'} {self.execution or 'closed-loop'}")
         if self.objects is not None:
             parts.append(self.objects)
+        if self.world_speed != 1.0:
+            parts.append(f"world speed {self.world_speed:g}")
         parts.append(f"seed {self.seed}")
         return " ".join(parts)
 
@@ -211,11 +218,19 @@ def _eval_cells(
             execution=execution,
             model=config.model,
             objects=objects,
+            world_speed=_world_speed(config, execution),
         )
         for physics in config.levels()
         for world, execution in config.conditions()
         for objects in config.object_levels()
     ]
+
+
+def _world_speed(config: SweepConfig, execution: str | None) -> float:
+    """The sweep's world speed for a closed-loop cell (open loop replays at full speed)."""
+    if config.world_speed is None or (execution or "closed-loop") != "closed-loop":
+        return 1.0
+    return config.world_speed
 
 
 def _slug(text: str) -> str:

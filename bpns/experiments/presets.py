@@ -53,6 +53,8 @@ class SweepConfig:
     model: str = "nominal"  # what the planner simulates (``bpns eval --model``)
     # PlanningConfig.demote_refuted for every eval cell (None: the environment's)
     demote_refuted: float | None = None
+    # ExecutionConfig.world_speed of every closed-loop cell (None: full speed)
+    world_speed: float | None = None
 
     def __post_init__(self) -> None:
         for field in ("envs", "demo_counts", "seeds", "approaches"):
@@ -91,6 +93,8 @@ class SweepConfig:
             raise SweepConfigError(
                 f"demote_refuted must be a finite cost > 0, got {self.demote_refuted}"
             )
+        if self.world_speed is not None and not 0 < self.world_speed <= 1:
+            raise SweepConfigError(f"world_speed must be in (0, 1], got {self.world_speed}")
         self._check_worlds()
         if self.perturb_axis is not None and self.worlds:
             raise SweepConfigError("sweep either a perturbation axis or worlds, not both")
@@ -178,6 +182,8 @@ class SweepConfig:
             del d["objects_axis"]
         if self.demote_refuted is None:  # (absent, likewise)
             del d["demote_refuted"]
+        if self.world_speed is None:  # (absent, likewise)
+            del d["world_speed"]
         if not self.worlds and not self.executions and self.model == "nominal":
             del d["worlds"], d["executions"], d["model"]  # (absent, likewise)
         return d

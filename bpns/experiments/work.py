@@ -130,7 +130,9 @@ def _evaluate(job: CellJob) -> dict[str, Any]:
         planner_seed=cell.seed,
         perturbation=_world_of(cell),
         model=parse_model(cell.model.split()),
-        execution=ExecutionConfig.of_mode(cell.execution or "closed-loop"),
+        execution=ExecutionConfig.of_mode(
+            cell.execution or "closed-loop", world_speed=cell.world_speed
+        ),
         eval_set=_eval_set_of(cell),
     )
     report = evaluate(spec, cell.eval_tasks, workers=1)

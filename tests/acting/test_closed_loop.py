@@ -16,7 +16,7 @@ from bpns.acting.monitor import kept_atoms, necessary_atoms, repair_point
 from bpns.acting.replanning import ClosedLoopPlanner, ClosedLoopStats, world_run
 from bpns.approaches.bilevel import BilevelPlanning
 from bpns.evaluation.evaluate import plan_reaches_goal
-from bpns.execution.executor import ExecutionTimeout
+from bpns.execution.executor import ExecutionTimeout, NotSlowableError
 from bpns.execution.failures import FailureReason
 from bpns.planning.config import PlanningConfig
 from bpns.structs import GroundAtom, State
@@ -215,11 +215,50 @@ def test_necessary_atoms_regress_the_goal_through_the_plan():
         {"rerefine_atol": 0.0},
         {"horizon_scale": 0.5},
         {"horizon_scale": float("inf")},
+        {"world_speed": 0.0},
+        {"world_speed": 1.5},
+        {"world_speed": float("nan")},
     ],
 )
 def test_bad_execution_settings_are_refused(fields):
     with pytest.raises(ExecutionConfigError):
         ExecutionConfig(**fields)
+
+
+class SlowableArm(toy.ToyStickButton):
+    """The toy arm declaring its motion dim (dx): a world-side speed may slow it."""
+
+    capabilities = dataclasses.replace(toy.ToyStickButton.capabilities, motion_dims=(0,))
+
+
+def test_a_slowed_world_moves_the_commanded_fraction_and_leaves_the_fingers_as_commanded():
+    model, world, task = toy.ToyStickButton(), SlowableArm(), _far_button_task()
+    planner = BilevelPlanning(model, toy.skills(), CONFIG)
+    full = planner.solve_in_world(
+        task, model, world, np.random.default_rng(0), 20.0, ExecutionConfig()
+    )
+    slow = planner.solve_in_world(
+        task, model, world, np.random.default_rng(0), 20.0, ExecutionConfig(world_speed=0.5)
+    )
+    assert full.success and slow.success
+    fast_dx = np.abs(np.asarray(full.actions)[:, 0]).max()
+    slow_acts = np.asarray(slow.actions)
+    # the same plan from the model, executed at half the commanded motion: no step moves
+    # more than half the fastest full-speed step, and it takes more steps to get there
+    assert np.abs(slow_acts[:, 0]).max() <= 0.5 * fast_dx + 1e-12
+    assert len(slow.actions) > len(full.actions)
+    assert set(np.unique(slow_acts[:, 1])) <= {-1.0, 0.0, 1.0}  # grip commands unscaled
+    # the recorded actions are the applied ones: replaying them in the world reaches the goal
+    assert plan_reaches_goal(SlowableArm(), task, slow.actions)
+
+
+def test_slowing_a_world_that_declares_no_motion_dims_is_one_clear_error():
+    model, task = toy.ToyStickButton(), _far_button_task()
+    planner = BilevelPlanning(model, toy.skills(), CONFIG)
+    with pytest.raises(NotSlowableError, match="declares no motion_dims"):
+        planner.solve_in_world(
+            task, model, model, np.random.default_rng(0), 20.0, ExecutionConfig(world_speed=0.5)
+        )
 
 
 def test_a_videos_caption_names_why_it_replanned_not_only_that_it_did():

@@ -126,3 +126,23 @@ def test_the_world_figure_draws_worlds_where_all_or_nothing_was_solved():
     (ax,) = success_vs_world(aggregate(records)).axes
     (container,) = ax.containers
     assert [round(y) for y in container.lines[0].get_ydata()] == [100, 0]
+
+
+def test_a_world_speed_slows_closed_loop_cells_only_and_names_them(cover_env):
+    worlds = dataclasses.replace(
+        BASE, worlds=("moderate",), executions=("closed-loop", "open-loop")
+    )
+    slow = dataclasses.replace(worlds, world_speed=0.6)
+    before = {c.key: c for c in sweep_cells(worlds, {"cover": cover_env}) if c.kind == EVAL}
+    cells = [c for c in sweep_cells(slow, {"cover": cover_env}) if c.kind == EVAL]
+    closed = [c for c in cells if c.execution == "closed-loop"]
+    opened = [c for c in cells if c.execution == "open-loop"]
+    assert closed and all(c.world_speed == 0.6 for c in closed)
+    assert all(c.key.endswith("-speed0.6-seed0") for c in closed)
+    assert all(c.settings["world_speed"] == 0.6 for c in closed)
+    # open loop replays the model's actions: at full speed, the very cells of before
+    assert opened and all(c.world_speed == 1.0 and c.key in before for c in opened)
+    assert all(before[c.key].settings == c.settings for c in opened)
+    assert "world_speed" not in worlds.to_json() and slow.to_json()["world_speed"] == 0.6
+    with pytest.raises(SweepConfigError, match="world_speed"):
+        dataclasses.replace(BASE, world_speed=0.0)

@@ -89,6 +89,7 @@ class CoffeeEnv(MujocoEnv):
         eval_sets={"large": ObjectCounts.of({"cup": (4, 6)})},
         object_limits={"cup": CUP_LIMITS},
         with_objects=with_objects,
+        motion_dims=(0, 1, 2, 3, 4),  # hand translation, wrist turn and tilt; not the fingers
     )
     controller_config = CONTROLLER
 

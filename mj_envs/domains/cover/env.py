@@ -51,6 +51,7 @@ class CoverEnv(MujocoEnv):
         eval_sets={"large": ObjectCounts.of({"block": (3, 4)})},
         object_limits={"block": BLOCK_LIMITS},
         with_objects=with_objects,
+        motion_dims=(0, 1, 2),  # hand translation; not the fingers
     )
 
     @property

@@ -128,6 +128,7 @@ class DoorsEnv(MujocoEnv):
         eval_sets={"large": ObjectCounts.of({"grid": (5, 6)})},
         object_limits={"grid": GRID_LIMITS},
         with_objects=with_objects,
+        motion_dims=(0, 1, 2, 3, 4, 5, 6),  # base, hand, wrist turn; not the fingers
     )
     base_config = BaseConfig()
     controller_config = ControllerConfig(

@@ -58,6 +58,7 @@ class StickButtonEnv(MujocoEnv):
         eval_sets={"large": ObjectCounts.of({"button": (5, 8)})},
         object_limits={"button": BUTTON_LIMITS},
         with_objects=with_objects,
+        motion_dims=(0, 1, 2),  # hand translation; not the fingers
     )
     controller_config = CONTROLLER
 
