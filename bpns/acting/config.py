@@ -40,7 +40,8 @@ class ExecutionConfig:
                       commanded motion (the environment's ``motion_dims``; the fingers as
                       commanded). A cloned policy's law is a gain on the distance to its
                       subgoal; a command that arrives late overshoots by that gain, so a
-                      slower arm stays stable under more latency. Refinement in the model
+                      slower arm stays stable under more latency. The skill's horizon in
+                      the world grows by 1 / world_speed with it. Refinement in the model
                       moves at full speed; 1.0: as commanded.
     """
 
@@ -71,8 +72,16 @@ class ExecutionConfig:
 
     def world_limits(self, limits: RolloutConfig) -> RolloutConfig:
         """``limits`` (the planner's, for the model) as a skill executing in the world
-        gets them: its horizon times ``horizon_scale``, its motion times ``world_speed``."""
-        return dataclasses.replace(limits, horizon_scale=self.horizon_scale, speed=self.world_speed)
+        gets them: its motion times ``world_speed`` and its horizon times
+        ``horizon_scale / world_speed``, capped at the planner's ``max_skill_horizon /
+        world_speed`` (a skill slowed to half its speed needs twice the steps to cover the
+        same ground). The task's own horizon stays as it is."""
+        return dataclasses.replace(
+            limits,
+            horizon_scale=self.horizon_scale / self.world_speed,
+            max_skill_horizon=math.ceil(limits.max_skill_horizon / self.world_speed),
+            speed=self.world_speed,
+        )
 
     @property
     def mode(self) -> str:

@@ -16,7 +16,7 @@ from bpns.acting.monitor import kept_atoms, necessary_atoms, repair_point
 from bpns.acting.replanning import ClosedLoopPlanner, ClosedLoopStats, world_run
 from bpns.approaches.bilevel import BilevelPlanning
 from bpns.evaluation.evaluate import plan_reaches_goal
-from bpns.execution.executor import ExecutionTimeout, NotSlowableError
+from bpns.execution.executor import ExecutionTimeout, NotSlowableError, RolloutConfig
 from bpns.execution.failures import FailureReason
 from bpns.planning.config import PlanningConfig
 from bpns.structs import GroundAtom, State
@@ -250,6 +250,13 @@ def test_a_slowed_world_moves_the_commanded_fraction_and_leaves_the_fingers_as_c
     assert set(np.unique(slow_acts[:, 1])) <= {-1.0, 0.0, 1.0}  # grip commands unscaled
     # the recorded actions are the applied ones: replaying them in the world reaches the goal
     assert plan_reaches_goal(SlowableArm(), task, slow.actions)
+
+
+def test_a_slowed_skill_gets_the_steps_its_speed_costs_in_the_world():
+    limits = ExecutionConfig(world_speed=0.5).world_limits(RolloutConfig(max_skill_horizon=200))
+    assert (limits.speed, limits.horizon_scale, limits.max_skill_horizon) == (0.5, 4.0, 400)
+    full = ExecutionConfig().world_limits(RolloutConfig(max_skill_horizon=200))
+    assert (full.speed, full.horizon_scale, full.max_skill_horizon) == (1.0, 2.0, 200)
 
 
 def test_slowing_a_world_that_declares_no_motion_dims_is_one_clear_error():
