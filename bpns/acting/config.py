@@ -10,6 +10,7 @@ from bpns.errors import BpnsError
 from bpns.execution.executor import RolloutConfig
 
 MODES = ("closed-loop", "open-loop")
+SLOW_FROM = ("start", "deviation")  # when a world_speed below 1 takes effect
 
 
 class ExecutionConfigError(BpnsError, ValueError):
@@ -43,6 +44,11 @@ class ExecutionConfig:
                       slower arm stays stable under more latency. The skill's horizon in
                       the world grows by 1 / world_speed with it. Refinement in the model
                       moves at full speed; 1.0: as commanded.
+    slow_from:        when ``world_speed`` takes effect: from the task's ``start``, or from
+                      the first ``deviation`` (a skill boundary where the world's features
+                      left the model's prediction by more than ``rerefine_atol``, or a
+                      divergence): until the world shows it differs from the model, the
+                      skills run as demonstrated and refined.
     """
 
     closed_loop: bool = True
@@ -51,6 +57,7 @@ class ExecutionConfig:
     watch_atoms: bool = True
     horizon_scale: float = 2.0
     world_speed: float = 1.0
+    slow_from: str = SLOW_FROM[0]
 
     def __post_init__(self) -> None:
         if isinstance(self.max_replans, bool) or not isinstance(self.max_replans, int):
@@ -69,18 +76,30 @@ class ExecutionConfig:
             )
         if not (0.0 < self.world_speed <= 1.0):
             raise ExecutionConfigError(f"world_speed must be in (0, 1], got {self.world_speed}")
+        if self.slow_from not in SLOW_FROM:
+            raise ExecutionConfigError(
+                f"slow_from must be one of {', '.join(SLOW_FROM)}, got {self.slow_from!r}"
+            )
 
-    def world_limits(self, limits: RolloutConfig) -> RolloutConfig:
+    @property
+    def slows_on_deviation(self) -> bool:
+        return self.world_speed < 1.0 and self.slow_from == "deviation"
+
+    def world_limits(self, limits: RolloutConfig, slowed: bool | None = None) -> RolloutConfig:
         """``limits`` (the planner's, for the model) as a skill executing in the world
         gets them: its motion times ``world_speed`` and its horizon times
         ``horizon_scale / world_speed``, capped at the planner's ``max_skill_horizon /
         world_speed`` (a skill slowed to half its speed needs twice the steps to cover the
-        same ground). The task's own horizon stays as it is."""
+        same ground). The task's own horizon stays as it is. ``slowed``: at the slowed
+        speed or at full speed (default: as ``slow_from`` starts a task)."""
+        if slowed is None:
+            slowed = self.slow_from == "start"
+        speed = self.world_speed if slowed else 1.0
         return dataclasses.replace(
             limits,
-            horizon_scale=self.horizon_scale / self.world_speed,
-            max_skill_horizon=math.ceil(limits.max_skill_horizon / self.world_speed),
-            speed=self.world_speed,
+            horizon_scale=self.horizon_scale / speed,
+            max_skill_horizon=math.ceil(limits.max_skill_horizon / speed),
+            speed=speed,
         )
 
     @property

@@ -267,6 +267,7 @@ class ClosedLoopPlanner:
             if problem is None:
                 i += 1
                 if i < len(steps) and self._deviated(world.state, steps[i - 1].states[-1]):
+                    self._slow_down(world, "the world left the model's prediction")
                     rest = self._reuse_rest(world, steps[i:], deadline, stats)
                     text = "kept the subgoals of the last {n} steps: they still reach the goal"
                     if rest is None:
@@ -281,6 +282,7 @@ class ClosedLoopPlanner:
                 continue
             stats.replans += 1
             kind, text = problem
+            self._slow_down(world, "the world diverged from the plan")
             world.event(kind, f"replan {stats.replans}: {text}")
             if world.used >= world.task.horizon:  # no step left to act: nothing to plan for
                 return failed(FailureReason.TASK_HORIZON)
@@ -304,7 +306,7 @@ class ClosedLoopPlanner:
         """Step ``step`` in the world; None when it reached its expected atoms."""
         start = step.states[0]
         if (
-            self.execution.world_speed == 1.0  # a slowed world does not reproduce the model
+            world.speed == 1.0  # a slowed world does not reproduce the model
             and world.state.sim is not None
             and start.sim is not None
             and world.state.sim.world is start.sim.world
@@ -331,6 +333,13 @@ class ClosedLoopPlanner:
                 f"{atoms_text(lost) or 'an atom'} stopped holding during {step.op}",
             )
         return ("skill_failed", f"{step.op} failed in the world: {reason}")
+
+    def _slow_down(self, world: WorldRun, why: str) -> None:
+        """With ``slow_from="deviation"``: the first deviation slows every later skill."""
+        if not self.execution.slows_on_deviation or world.speed != 1.0:
+            return
+        limits = self.execution.world_limits(RolloutConfig.of(self.config), slowed=True)
+        world.slow_down(limits, f"{why}: skills slowed to {limits.speed:g} of their speed")
 
     def _deviated(self, world_state: State, model_state: State) -> bool:
         atol = self.execution.rerefine_atol

@@ -84,6 +84,16 @@ class WorldRun:
         self._advance(op, subgoal if ran else None, actions, states, str(out))
         return out
 
+    @property
+    def speed(self) -> float:
+        """The fraction of each commanded motion skills execute with now."""
+        return self.executor.config.speed
+
+    def slow_down(self, limits: RolloutConfig, text: str) -> None:
+        """Execute every later skill with ``limits`` (a slower speed), noted as an event."""
+        self.executor.set_limits(limits)
+        self.event("slowed", text)
+
     def reuse(
         self,
         op: GroundOperator,

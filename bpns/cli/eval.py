@@ -7,7 +7,7 @@ import dataclasses
 import sys
 from collections.abc import Sequence
 
-from bpns.acting.config import MODES, ExecutionConfig
+from bpns.acting.config import MODES, SLOW_FROM, ExecutionConfig
 from bpns.approaches import ApproachEntry, SkillSource, approach_names
 from bpns.cli.common import (
     UserError,
@@ -271,6 +271,13 @@ def add_world_arguments(p: argparse.ArgumentParser) -> None:
         help="closed loop: a skill executing in the world applies this fraction of each "
         "commanded motion (in (0, 1]; slower is steadier under latency; default: %(default)s)",
     )
+    p.add_argument(
+        "--slow-from",
+        choices=SLOW_FROM,
+        default=ExecutionConfig().slow_from,
+        help="closed loop: --world-speed takes effect from the task's start, or from the "
+        "first deviation of the world from the model (default: %(default)s)",
+    )
 
 
 def world_settings(
@@ -300,6 +307,7 @@ def world_settings(
         rerefine_atol=atol,
         horizon_scale=scale,
         world_speed=speed,
+        slow_from=args.slow_from,
     )
     return worlds, model, execution
 

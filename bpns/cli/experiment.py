@@ -12,7 +12,7 @@ import sys
 import threading
 from pathlib import Path
 
-from bpns.acting.config import MODES
+from bpns.acting.config import MODES, SLOW_FROM
 from bpns.approaches import get_approach
 from bpns.cli.common import Terminated, UserError, path_arg, positive_float, whole_at_least
 from bpns.cli.paths import check_free_space, check_output_dir
@@ -124,6 +124,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "default: full speed)",
     )
     parser.add_argument(
+        "--slow-from",
+        choices=SLOW_FROM,
+        help="with --world-speed: from the task's start (default) or the first deviation",
+    )
+    parser.add_argument(
         "--workers",
         type=_count,
         default=1,
@@ -168,6 +173,7 @@ def sweep_config(args: argparse.Namespace) -> SweepConfig:
             model=args.model,
             demote_refuted=args.demote_refuted,
             world_speed=args.world_speed,
+            slow_from=args.slow_from,
         )
     except SweepConfigError as err:
         raise UserError(str(err)) from None
@@ -296,6 +302,8 @@ def command_line(config: SweepConfig, out: Path, args: argparse.Namespace) -> st
         argv += ["--demote-refuted", f"{config.demote_refuted:g}"]
     if config.world_speed is not None:
         argv += ["--world-speed", f"{config.world_speed:g}"]
+    if config.slow_from is not None:
+        argv += ["--slow-from", config.slow_from]
     argv += ["--workers", str(args.workers)]
     if args.backend != "pool":
         argv += ["--backend", args.backend]

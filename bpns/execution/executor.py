@@ -157,6 +157,12 @@ class SkillExecutor:
                 for objs in object_tuples(task.init.objects, p.types)
             ]
 
+    def set_limits(self, config: RolloutConfig) -> None:
+        """Execute from now on with ``config`` (e.g. a world that slows its skills once
+        it showed it differs from the model)."""
+        self.config = config
+        self.slowed = _motion_index(self.env, self.low.size) if config.speed != 1.0 else None
+
     def contact_values(self, state: State) -> tuple[bool, ...]:
         return tuple(bool(c(state, o)) for c, o in self.contact_watch)
 

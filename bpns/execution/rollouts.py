@@ -146,7 +146,7 @@ def event_captions(captions: Sequence[str], events: Sequence[Event], hold: int =
     return out
 
 
-_RESPONSES = frozenset({"replanned", "rerefined"})  # what the planner did, not why
+_RESPONSES = frozenset({"replanned", "rerefined", "slowed"})  # what the planner did, not why
 
 
 def outcome_caption(

@@ -57,6 +57,7 @@ class Cell:
     model: str = "nominal"  # what the planner simulates, when worlds are swept
     objects: str | None = None  # eval cells of an object axis: "button=5" (bpns eval --objects)
     world_speed: float = 1.0  # closed-loop eval cells: ExecutionConfig.world_speed
+    slow_from: str = "start"  # and ExecutionConfig.slow_from (with a world_speed below 1)
 
     @property
     def key(self) -> str:
@@ -75,6 +76,8 @@ class Cell:
                 level += f"-{self.objects.replace('=', '')}"
             if self.world_speed != 1.0:
                 level += f"-speed{level_label(self.world_speed)}"
+                if self.slow_from != "start":
+                    level += f"-from{self.slow_from}"
             return f"{EVAL}/{self.env}-{self.approach}{count}{level}-seed{self.seed}"
         if self.kind == SKILLS:
             return f"{SKILLS}/{self.env}{count}-seed{self.seed}"
@@ -114,6 +117,8 @@ class Cell:
                 s["objects"] = self.objects
             if self.world_speed != 1.0:  # (absent at full speed, likewise)
                 s["world_speed"] = self.world_speed
+                if self.slow_from != "start":
+                    s["slow_from"] = self.slow_from
         return json.loads(json.dumps(s))
 
     def describe(self) -> str:
@@ -134,6 +139,8 @@ class Cell:
             parts.append(self.objects)
         if self.world_speed != 1.0:
             parts.append(f"world speed {self.world_speed:g}")
+            if self.slow_from != "start":
+                parts.append(f"from the first {self.slow_from}")
         parts.append(f"seed {self.seed}")
         return " ".join(parts)
 
@@ -219,6 +226,7 @@ def _eval_cells(
             model=config.model,
             objects=objects,
             world_speed=_world_speed(config, execution),
+            slow_from=config.slow_from or "start",
         )
         for physics in config.levels()
         for world, execution in config.conditions()

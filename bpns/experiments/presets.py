@@ -10,7 +10,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-from bpns.acting.config import MODES
+from bpns.acting.config import MODES, SLOW_FROM
 from bpns.env.perturbations import Perturbation, PerturbationError
 from bpns.env.registry import environment_names
 from bpns.env.worlds import parse_model, parse_world
@@ -53,8 +53,10 @@ class SweepConfig:
     model: str = "nominal"  # what the planner simulates (``bpns eval --model``)
     # PlanningConfig.demote_refuted for every eval cell (None: the environment's)
     demote_refuted: float | None = None
-    # ExecutionConfig.world_speed of every closed-loop cell (None: full speed)
+    # ExecutionConfig.world_speed of every closed-loop cell (None: full speed), and when
+    # it takes effect (ExecutionConfig.slow_from; None: from the start)
     world_speed: float | None = None
+    slow_from: str | None = None
 
     def __post_init__(self) -> None:
         for field in ("envs", "demo_counts", "seeds", "approaches"):
@@ -95,6 +97,10 @@ class SweepConfig:
             )
         if self.world_speed is not None and not 0 < self.world_speed <= 1:
             raise SweepConfigError(f"world_speed must be in (0, 1], got {self.world_speed}")
+        if self.slow_from is not None and self.slow_from not in SLOW_FROM:
+            raise SweepConfigError(
+                f"slow_from must be one of {', '.join(SLOW_FROM)}, got {self.slow_from!r}"
+            )
         self._check_worlds()
         if self.perturb_axis is not None and self.worlds:
             raise SweepConfigError("sweep either a perturbation axis or worlds, not both")
@@ -184,6 +190,8 @@ class SweepConfig:
             del d["demote_refuted"]
         if self.world_speed is None:  # (absent, likewise)
             del d["world_speed"]
+        if self.slow_from is None:  # (absent, likewise)
+            del d["slow_from"]
         if not self.worlds and not self.executions and self.model == "nominal":
             del d["worlds"], d["executions"], d["model"]  # (absent, likewise)
         return d

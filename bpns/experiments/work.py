@@ -131,7 +131,9 @@ def _evaluate(job: CellJob) -> dict[str, Any]:
         perturbation=_world_of(cell),
         model=parse_model(cell.model.split()),
         execution=ExecutionConfig.of_mode(
-            cell.execution or "closed-loop", world_speed=cell.world_speed
+            cell.execution or "closed-loop",
+            world_speed=cell.world_speed,
+            slow_from=cell.slow_from,
         ),
         eval_set=_eval_set_of(cell),
     )

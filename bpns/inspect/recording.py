@@ -41,7 +41,12 @@ from bpns.inspect.explain import explanation_markdown
 APP_ID = "bpns"
 STEP = "step"
 SIM_TIME = "sim_time"
-EVENT_LEVELS = {"replanned": "INFO", "rerefined": "INFO", "replan_failed": "ERROR"}
+EVENT_LEVELS = {
+    "replanned": "INFO",
+    "rerefined": "INFO",
+    "slowed": "INFO",
+    "replan_failed": "ERROR",
+}
 
 
 @dataclass(frozen=True)

@@ -218,6 +218,7 @@ def test_necessary_atoms_regress_the_goal_through_the_plan():
         {"world_speed": 0.0},
         {"world_speed": 1.5},
         {"world_speed": float("nan")},
+        {"slow_from": "never"},
     ],
 )
 def test_bad_execution_settings_are_refused(fields):
@@ -250,6 +251,34 @@ def test_a_slowed_world_moves_the_commanded_fraction_and_leaves_the_fingers_as_c
     assert set(np.unique(slow_acts[:, 1])) <= {-1.0, 0.0, 1.0}  # grip commands unscaled
     # the recorded actions are the applied ones: replaying them in the world reaches the goal
     assert plan_reaches_goal(SlowableArm(), task, slow.actions)
+
+
+class SlowableOvershoot(Overshoot):
+    capabilities = SlowableArm.capabilities
+
+
+def test_slowing_from_the_first_deviation_leaves_a_world_like_the_model_at_full_speed():
+    task = _far_button_task()
+    model = toy.ToyStickButton()
+    planner = BilevelPlanning(model, toy.skills(), CONFIG)
+    lazy = ExecutionConfig(world_speed=0.5, slow_from="deviation")
+
+    def solve(world, execution):
+        return planner.solve_in_world(task, model, world, np.random.default_rng(0), 20.0, execution)
+
+    # a world that behaves as the model: never slowed, the very actions of full speed
+    same = solve(SlowableArm(), lazy)
+    full = solve(SlowableArm(), ExecutionConfig())
+    assert same.success and np.array_equal(np.asarray(same.actions), np.asarray(full.actions))
+    assert not [e for e in same.rollout.events if e.kind == "slowed"]
+    # a world that overshoots: the first boundary deviates, every later skill is slowed
+    drift = solve(SlowableOvershoot(), lazy)
+    slowed = [e for e in drift.rollout.events if e.kind == "slowed"]
+    assert drift.success and len(slowed) == 1
+    assert "skills slowed to 0.5 of their speed" in slowed[0].text
+    after = np.asarray(drift.actions)[slowed[0].at :, 0]
+    assert np.abs(after).max() <= 0.5 + 1e-12  # the toy's largest step is 1
+    assert plan_reaches_goal(SlowableOvershoot(), task, drift.actions)
 
 
 def test_a_slowed_skill_gets_the_steps_its_speed_costs_in_the_world():

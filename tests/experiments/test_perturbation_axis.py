@@ -144,5 +144,13 @@ def test_a_world_speed_slows_closed_loop_cells_only_and_names_them(cover_env):
     assert opened and all(c.world_speed == 1.0 and c.key in before for c in opened)
     assert all(before[c.key].settings == c.settings for c in opened)
     assert "world_speed" not in worlds.to_json() and slow.to_json()["world_speed"] == 0.6
+    lazy = dataclasses.replace(slow, slow_from="deviation")
+    lazy_closed = [c for c in sweep_cells(lazy, {"cover": cover_env}) if c.kind == EVAL]
+    lazy_closed = [c for c in lazy_closed if c.execution == "closed-loop"]
+    assert all(c.key.endswith("-speed0.6-fromdeviation-seed0") for c in lazy_closed)
+    assert all(c.settings["slow_from"] == "deviation" for c in lazy_closed)
+    assert "slow_from" not in slow.to_json() and lazy.to_json()["slow_from"] == "deviation"
     with pytest.raises(SweepConfigError, match="world_speed"):
         dataclasses.replace(BASE, world_speed=0.0)
+    with pytest.raises(SweepConfigError, match="slow_from"):
+        dataclasses.replace(BASE, slow_from="later")
