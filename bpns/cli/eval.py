@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import sys
 from collections.abc import Sequence
 
 from bpns.acting.config import MODES, SLOW_FROM, ExecutionConfig
 from bpns.approaches import ApproachEntry, SkillSource, approach_names
+from bpns.atomic import staged
 from bpns.cli.common import (
     UserError,
     add_eval_set_arguments,
@@ -438,14 +440,29 @@ def _write_outputs(args: argparse.Namespace, env: Environment, reports: list[Eva
     """The Rerun recordings, the results files, report.html and the video, then what
     was written (the page links the recordings, so they come first)."""
     recorded = []
-    if args.rerun is not None:
-        with writing(args.rerun, "--rerun"):
-            recorded = record_evaluation(env, reports, args.rerun, args.rerun_tasks, print)
-    page = PageRequest(args.report_videos, args.report_video_budget, args.camera, tuple(recorded))
-    with writing(args.out or args.video):
-        reported = report_evaluation(
-            env, reports, args.out, args.video, args.seed, args.train, args.task, args.camera, page
+    # the recordings are put in place with the results (after them), or not at all: an
+    # interrupted `eval --overwrite` leaves the earlier recordings as they were
+    with contextlib.ExitStack() as stack:
+        if args.rerun is not None:
+            stack.enter_context(writing(args.rerun, "--rerun"))
+        staging = stack.enter_context(staged(args.rerun))
+        if args.rerun is not None:
+            recorded = record_evaluation(env, reports, args.rerun, args.rerun_tasks, print, staging)
+        page = PageRequest(
+            args.report_videos, args.report_video_budget, args.camera, tuple(recorded)
         )
+        with writing(args.out or args.video):
+            reported = report_evaluation(
+                env,
+                reports,
+                args.out,
+                args.video,
+                args.seed,
+                args.train,
+                args.task,
+                args.camera,
+                page,
+            )
     print_lines(reported)
     if reported.no_video_of is not None:
         print(f"no {reported.no_video_of} task was solved: no video", file=sys.stderr)

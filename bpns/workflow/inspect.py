@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
 
+from bpns.atomic import Staging
 from bpns.data.datasets import DatasetError, count_demonstrations
 from bpns.env.environment import Environment
 from bpns.evaluation.evaluate import EvalReport
@@ -78,15 +79,19 @@ def record_evaluation(
     directory: Path,
     which: str = "failed",
     progress: Callable[[str], None] | None = None,
+    staging: Staging | None = None,
 ) -> list[Recorded]:
-    """One recording per chosen task and approach in ``directory``."""
+    """One recording per chosen task and approach in ``directory``; with ``staging``,
+    written to its staging directory and put in place when it commits (the
+    :class:`Recorded` name the final paths)."""
     recording = _recording()
     out = []
     for report in reports:
         for outcome in chosen_outcomes(report, which):
             episode: Episode = episode_of_outcome(env, report, outcome)
             path = directory / recording_name(report.approach, outcome.index)
-            steps = recording.write_recording(episode, path)
+            target = path if staging is None else staging.path(path)
+            steps = recording.write_recording(episode, target)
             out.append(
                 Recorded(
                     path, episode.title, steps, episode.outcome, report.approach, outcome.index

@@ -148,11 +148,14 @@ def test_eval_stopped_while_it_renders_its_report_keeps_every_earlier_output(
     from bpns.cli import main
     from bpns.workflow import report_page
 
-    out, video = tmp_path / "ev", tmp_path / "solved.mp4"
+    out, video, rec = tmp_path / "ev", tmp_path / "solved.mp4", tmp_path / "rec"
     argv = ["eval", "--env", "cover", "--approach", "oracle", "-n", "1", "--workers", "1"]
     argv += ["--out", str(out), "--video", str(video), "--report-videos", "none"]
+    argv += ["--rerun", str(rec)]
     assert main(argv) == 0
     before = {**_tree(out), "video": _digest(video), "png": _digest(video.with_suffix(".png"))}
+    recordings = _tree(rec)
+    assert list(recordings) == ["oracle_task0.rrd"]
 
     def stopped(*args, **kwargs):  # Ctrl-C after the results and the video were written
         raise KeyboardInterrupt
@@ -163,8 +166,10 @@ def test_eval_stopped_while_it_renders_its_report_keeps_every_earlier_output(
     assert (code, capsys.readouterr().err.strip()) == (130, "bpns: interrupted")
     after = {**_tree(out), "video": _digest(video), "png": _digest(video.with_suffix(".png"))}
     assert after == before
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["ev", "solved.mp4", "solved.png"]
+    assert _tree(rec) == recordings  # the recordings too: put in place with the results
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ev", "rec", "solved.mp4", "solved.png"]
     assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no staging left
+    assert not [p for p in rec.iterdir() if p.name.startswith(".")]
 
 
 def test_deferred_signals_wait_for_the_end_of_the_block():
