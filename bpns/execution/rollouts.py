@@ -146,7 +146,8 @@ def event_captions(captions: Sequence[str], events: Sequence[Event], hold: int =
     return out
 
 
-_RESPONSES = frozenset({"replanned", "rerefined", "slowed"})  # what the planner did, not why
+# what the planner did, not why ("slowed" says why: the world left the model's prediction)
+_RESPONSES = frozenset({"replanned", "rerefined"})
 
 
 def outcome_caption(

@@ -308,6 +308,12 @@ def test_a_videos_caption_names_why_it_replanned_not_only_that_it_did():
     out = event_captions(["step"] * 12, events, hold=40)
     assert out[0] == "step" and out[4].endswith("Holding(robot, stick) stopped holding")
     assert out[11].endswith("refined the last 1 steps again")
+    # slowing says why it happened: shown rather than the re-refinement of the same step
+    slowed = [
+        Event(2, "slowed", "the world left the model's prediction: skills slowed to 0.8"),
+        Event(2, "rerefined", "kept the subgoals of the last 3 steps"),
+    ]
+    assert event_captions(["step"] * 4, slowed, hold=40)[3].endswith("skills slowed to 0.8")
 
 
 class GoodGripOnce(toy.PickSampler):
