@@ -19,7 +19,7 @@ from bpns.acting.config import ExecutionConfig
 from bpns.approaches.base import Approach, Solution, failure, open_loop
 from bpns.env.abstraction import abstract
 from bpns.env.environment import Environment, observation_of
-from bpns.execution.executor import checked_action
+from bpns.execution.executor import checked_action, motion_index
 from bpns.execution.failures import FailureReason
 from bpns.execution.rollouts import Rollout
 from bpns.structs import State, Task
@@ -51,13 +51,21 @@ class ClosedLoopPolicy(Approach):
         execution: ExecutionConfig,
     ) -> Solution:
         """A policy acting every control step needs no model: closed loop, it acts in
-        ``world`` on the world's observation itself."""
+        ``world`` on the world's observation itself, at ``execution.world_speed`` from the
+        start (with ``slow_from="deviation"`` never: there is no model's prediction to
+        leave)."""
         if not execution.closed_loop:
             return open_loop(self, task, model, world, rng, timeout)
-        return self._run(world, task, rng, timeout)
+        speed = execution.world_speed if execution.slow_from == "start" else 1.0
+        return self._run(world, task, rng, timeout, speed)
 
     def _run(
-        self, env: Environment, task: Task, rng: np.random.Generator, timeout: float
+        self,
+        env: Environment,
+        task: Task,
+        rng: np.random.Generator,
+        timeout: float,
+        speed: float = 1.0,
     ) -> Solution:
         deadline = time.monotonic() + timeout
         self.reset(task, rng)
@@ -70,6 +78,7 @@ class ClosedLoopPolicy(Approach):
 
         goal_predicates = env.goal_predicates
         observe = observation_of(env)  # what the policy sees (e.g. noisy features)
+        slowed = motion_index(env, self.low.size) if speed != 1.0 else None
         while not task.goal_holds(abstract(state, goal_predicates)):
             if len(actions) >= task.horizon:
                 return failed(FailureReason.TASK_HORIZON)
@@ -82,6 +91,8 @@ class ClosedLoopPolicy(Approach):
             action = checked_action(raw, self.low, self.high)
             if isinstance(action, FailureReason):
                 return failed(action)
+            if slowed is not None:
+                action[slowed] *= speed
             state = env.simulate(state, action)
             actions.append(action)
         return Solution(

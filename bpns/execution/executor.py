@@ -139,7 +139,7 @@ class SkillExecutor:
         self.low = np.asarray(env.action_low, dtype=np.float64)
         self.high = np.asarray(env.action_high, dtype=np.float64)
         self.config = config
-        self.slowed = _motion_index(env, self.low.size) if config.speed != 1.0 else None
+        self.slowed = motion_index(env, self.low.size) if config.speed != 1.0 else None
         self.horizon = task.horizon
         self.deadline = deadline
         self.sim_steps = 0
@@ -161,7 +161,7 @@ class SkillExecutor:
         """Execute from now on with ``config`` (e.g. a world that slows its skills once
         it showed it differs from the model)."""
         self.config = config
-        self.slowed = _motion_index(self.env, self.low.size) if config.speed != 1.0 else None
+        self.slowed = motion_index(self.env, self.low.size) if config.speed != 1.0 else None
 
     def contact_values(self, state: State) -> tuple[bool, ...]:
         return tuple(bool(c(state, o)) for c, o in self.contact_watch)
@@ -260,7 +260,7 @@ class NotSlowableError(BpnsError, ValueError):
     """A speed below 1 asked of an environment that declares no ``motion_dims``."""
 
 
-def _motion_index(env: Environment, size: int) -> np.ndarray:
+def motion_index(env: Environment, size: int) -> np.ndarray:
     """The action indices a speed scales (the environment's ``motion_dims``), checked."""
     dims = env.capabilities.motion_dims
     if dims is None:

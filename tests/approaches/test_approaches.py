@@ -85,6 +85,24 @@ class GoTo(ClosedLoopPolicy):
         return np.array([toy._toward(state.get(robot, "x"), self.x), 0.0])
 
 
+def test_a_per_step_policy_in_a_slowed_world_moves_the_commanded_fraction():
+    from bpns.acting.config import ExecutionConfig
+    from tests.acting.test_closed_loop import SlowableArm
+
+    near, rng = toy.make_task([3.0], horizon=100), np.random.default_rng(0)
+    full = GoTo(3.0).solve_in_world(near, ENV, SlowableArm(), rng, 10.0, ExecutionConfig())
+    slow = GoTo(3.0).solve_in_world(
+        near, ENV, SlowableArm(), rng, 10.0, ExecutionConfig(world_speed=0.5)
+    )
+    assert full.success and slow.success and len(slow.actions) > len(full.actions)
+    assert np.abs(slow.actions[:, 0]).max() <= 0.5 * np.abs(full.actions[:, 0]).max() + 1e-12
+    assert plan_reaches_goal(SlowableArm(), near, slow.actions)
+    # slowed from the first deviation: a policy has no model's prediction to leave
+    lazy = ExecutionConfig(world_speed=0.5, slow_from="deviation")
+    same = GoTo(3.0).solve_in_world(near, ENV, SlowableArm(), rng, 10.0, lazy)
+    assert np.array_equal(same.actions, full.actions)
+
+
 def test_a_per_step_policy_acts_until_the_goal_holds_or_the_horizon_ends():
     near = toy.make_task([3.0], horizon=100)
     result = GoTo(3.0).solve(near, np.random.default_rng(0), 10.0)
