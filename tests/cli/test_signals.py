@@ -175,9 +175,27 @@ def test_eval_stopped_while_it_renders_its_report_keeps_every_earlier_output(
 def test_deferred_signals_wait_for_the_end_of_the_block():
     from bpns.atomic import deferred_signals
 
+    # Ctrl-C as a terminal gives it: CI may run the suite with SIGINT ignored, and an
+    # ignored signal stays ignored after the block (as it would have been without it)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     seen = []
-    with pytest.raises(KeyboardInterrupt):
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with deferred_signals():
+                signal.raise_signal(signal.SIGINT)
+                seen.append("after the signal, inside the block")
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert seen == ["after the signal, inside the block"]
+
+
+def test_a_deferred_signal_the_process_ignores_stays_ignored():
+    from bpns.atomic import deferred_signals
+
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
         with deferred_signals():
             signal.raise_signal(signal.SIGINT)
-            seen.append("after the signal, inside the block")
-    assert seen == ["after the signal, inside the block"]
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, previous)
