@@ -261,7 +261,10 @@ def robustness_sections() -> list[str]:
             "release and close tests were made robust to observation noise (commit 77ae91b, "
             "which also changes its demonstrations) and its skills draw correlated subgoal "
             "noise (commit 9fd7178); Coffee and Stick Button "
-            "before c0e14b3. None of them meets issue 37's targets yet.\n",
+            "before c0e14b3. None of them meets issue 37's targets yet. Slowing the arm "
+            "once the world leaves the model's prediction (`--world-speed 0.8 --slow-from "
+            "deviation`, off by default) is measured beside full speed on fresh seeds in "
+            "docs/WORLDS.md, its tables in docs/experiments/worlds/*_speed/.\n",
         )
     return out
 
