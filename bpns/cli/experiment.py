@@ -158,6 +158,8 @@ def sweep_config(args: argparse.Namespace) -> SweepConfig:
         except PerturbationError as err:
             raise UserError(f"--perturb-axis: {err}") from None
     objects_axis = _objects_axis(args.objects_axis) if args.objects_axis else None
+    if args.world_speed is not None and not 0 < args.world_speed <= 1:
+        raise UserError(f"--world-speed: expected a number in (0, 1], got {args.world_speed:g}")
     try:
         config = PRESETS[args.preset].with_overrides(
             envs=args.env,
