@@ -82,6 +82,11 @@ class ExecutionConfig:
             )
 
     @property
+    def starting_speed(self) -> float:
+        """The world speed a task starts with (full speed when it waits for a deviation)."""
+        return self.world_speed if self.slow_from == "start" else 1.0
+
+    @property
     def slows_on_deviation(self) -> bool:
         return self.world_speed < 1.0 and self.slow_from == "deviation"
 
@@ -93,8 +98,9 @@ class ExecutionConfig:
         same ground). The task's own horizon stays as it is. ``slowed``: at the slowed
         speed or at full speed (default: as ``slow_from`` starts a task)."""
         if slowed is None:
-            slowed = self.slow_from == "start"
-        speed = self.world_speed if slowed else 1.0
+            speed = self.starting_speed
+        else:
+            speed = self.world_speed if slowed else 1.0
         return dataclasses.replace(
             limits,
             horizon_scale=self.horizon_scale / speed,

@@ -56,8 +56,7 @@ class ClosedLoopPolicy(Approach):
         leave)."""
         if not execution.closed_loop:
             return open_loop(self, task, model, world, rng, timeout)
-        speed = execution.world_speed if execution.slow_from == "start" else 1.0
-        return self._run(world, task, rng, timeout, speed)
+        return self._run(world, task, rng, timeout, execution.starting_speed)
 
     def _run(
         self,
@@ -78,7 +77,7 @@ class ClosedLoopPolicy(Approach):
 
         goal_predicates = env.goal_predicates
         observe = observation_of(env)  # what the policy sees (e.g. noisy features)
-        slowed = motion_index(env, self.low.size) if speed != 1.0 else None
+        slowed = motion_index(env) if speed != 1.0 else None
         while not task.goal_holds(abstract(state, goal_predicates)):
             if len(actions) >= task.horizon:
                 return failed(FailureReason.TASK_HORIZON)

@@ -18,6 +18,7 @@ from bpns.env.environment import eval_set_of
 from bpns.env.object_counts import PAPER, EvalSet, ObjectCountError, ObjectCounts
 from bpns.env.registry import PluginError, UnknownEnvironmentError, make_environment
 from bpns.errors import BpnsError
+from bpns.execution.executor import NotSlowableError, motion_index
 from bpns.learning.artifacts.learned import load_learned
 from bpns.learning.artifacts.skills_dir import ArtifactError
 
@@ -87,6 +88,24 @@ def positive_float(text: str) -> float:
     if not (math.isfinite(v) and v > 0.0):
         raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text}")
     return v
+
+
+def fraction(text: str) -> float:
+    """A number in (0, 1] (e.g. ``--world-speed``)."""
+    v = _float(text)
+    if not 0.0 < v <= 1.0:  # nan fails every comparison: refused here
+        raise argparse.ArgumentTypeError(f"expected a number in (0, 1], got {text}")
+    return v
+
+
+def check_slowable(env, speed: float) -> None:
+    """A world speed below 1 needs the environment's ``motion_dims``: said before any work."""
+    if speed == 1.0:
+        return
+    try:
+        motion_index(env)
+    except NotSlowableError as err:
+        raise UserError(f"--world-speed: environment {env.name!r}: {err}") from None
 
 
 def tolerance_or_off(text: str) -> float | str:

@@ -15,10 +15,12 @@ from bpns.cli.common import (
     UserError,
     add_eval_set_arguments,
     approach_by_name,
+    check_slowable,
     cost_or_off,
     default_workers,
     env_by_name,
     eval_set_from,
+    fraction,
     learned_in,
     nonnegative,
     path_arg,
@@ -268,7 +270,7 @@ def add_world_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--world-speed",
-        type=float,
+        type=fraction,
         default=ExecutionConfig().world_speed,
         help="closed loop: a skill executing in the world applies this fraction of each "
         "commanded motion (in (0, 1]; slower is steadier under latency; default: %(default)s)",
@@ -300,15 +302,12 @@ def world_settings(
     scale = args.horizon_scale
     if not (1.0 <= scale < float("inf")):
         raise UserError(f"--horizon-scale: expected a finite number >= 1, got {scale:g}")
-    speed = args.world_speed
-    if not (0.0 < speed <= 1.0):
-        raise UserError(f"--world-speed: expected a number in (0, 1], got {speed:g}")
     execution = ExecutionConfig.of_mode(
         args.execution,
         max_replans=args.max_replans,
         rerefine_atol=atol,
         horizon_scale=scale,
-        world_speed=speed,
+        world_speed=args.world_speed,
         slow_from=args.slow_from,
     )
     return worlds, model, execution
@@ -324,11 +323,7 @@ def run(args: argparse.Namespace) -> int:
     workers = capped_to_cores(args.workers, "--workers")
     env, learned = _evaluated_environment(args, approaches)
     _check_environment_supports(env, worlds, model, approaches)
-    if execution.world_speed != 1.0 and env.capabilities.motion_dims is None:
-        raise UserError(
-            f"--world-speed: environment {env.name!r} declares no motion_dims (Capabilities),"
-            " so its skills cannot be slowed"
-        )
+    check_slowable(env, execution.world_speed)
     base = _planning_settings(args, env)
     request = EvalRequest(
         num_tasks=args.tasks,

@@ -14,7 +14,15 @@ from pathlib import Path
 
 from bpns.acting.config import MODES, SLOW_FROM
 from bpns.approaches import get_approach
-from bpns.cli.common import Terminated, UserError, path_arg, positive_float, whole_at_least
+from bpns.cli.common import (
+    Terminated,
+    UserError,
+    check_slowable,
+    fraction,
+    path_arg,
+    positive_float,
+    whole_at_least,
+)
 from bpns.cli.paths import check_free_space, check_output_dir
 from bpns.data.datasets import min_demo_bytes
 from bpns.env import registry
@@ -118,7 +126,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--world-speed",
-        type=float,
+        type=fraction,
         metavar="FRACTION",
         help="closed-loop eval cells run with `bpns eval --world-speed FRACTION` (in (0, 1]; "
         "default: full speed)",
@@ -158,8 +166,6 @@ def sweep_config(args: argparse.Namespace) -> SweepConfig:
         except PerturbationError as err:
             raise UserError(f"--perturb-axis: {err}") from None
     objects_axis = _objects_axis(args.objects_axis) if args.objects_axis else None
-    if args.world_speed is not None and not 0 < args.world_speed <= 1:
-        raise UserError(f"--world-speed: expected a number in (0, 1], got {args.world_speed:g}")
     try:
         config = PRESETS[args.preset].with_overrides(
             envs=args.env,
@@ -326,6 +332,8 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(str(err)) from None
     config, envs = loadable(sweep_config(args), args)
     check_objects_axis(config, envs)
+    for env in envs.values():
+        check_slowable(env, 1.0 if config.world_speed is None else config.world_speed)
     out: Path = args.out or Path("outputs") / "experiments" / config.name
     if args.report_only or args.dry_run:
         if out.exists() and not out.is_dir():

@@ -138,8 +138,7 @@ class SkillExecutor:
         self.env = env
         self.low = np.asarray(env.action_low, dtype=np.float64)
         self.high = np.asarray(env.action_high, dtype=np.float64)
-        self.config = config
-        self.slowed = motion_index(env, self.low.size) if config.speed != 1.0 else None
+        self.set_limits(config)
         self.horizon = task.horizon
         self.deadline = deadline
         self.sim_steps = 0
@@ -161,7 +160,7 @@ class SkillExecutor:
         """Execute from now on with ``config`` (e.g. a world that slows its skills once
         it showed it differs from the model)."""
         self.config = config
-        self.slowed = motion_index(self.env, self.low.size) if config.speed != 1.0 else None
+        self.slowed = motion_index(self.env) if config.speed != 1.0 else None
 
     def contact_values(self, state: State) -> tuple[bool, ...]:
         return tuple(bool(c(state, o)) for c, o in self.contact_watch)
@@ -211,6 +210,7 @@ class SkillExecutor:
         watch = self.contact_values(state) if self.contact_watch else None
         kept = [(a.predicate.classifier, a.objects) for a in keep]
         lost = 0
+        slowed, speed = self.slowed, self.config.speed
         limit = self.config.max_skill_horizon
         if skill.horizon is not None:
             limit = min(limit, math.ceil(skill.horizon * self.config.horizon_scale))
@@ -226,8 +226,8 @@ class SkillExecutor:
             action = checked_action(raw, low, high)
             if isinstance(action, FailureReason):
                 return action
-            if self.slowed is not None:
-                action[self.slowed] *= self.config.speed
+            if slowed is not None:
+                action[slowed] *= speed
             state = simulate(state, action)
             self.sim_steps += 1
             actions.append(action)
@@ -260,9 +260,11 @@ class NotSlowableError(BpnsError, ValueError):
     """A speed below 1 asked of an environment that declares no ``motion_dims``."""
 
 
-def motion_index(env: Environment, size: int) -> np.ndarray:
-    """The action indices a speed scales (the environment's ``motion_dims``), checked."""
+def motion_index(env: Environment) -> np.ndarray:
+    """The action indices a speed scales (the environment's ``motion_dims``), checked
+    against its action's size."""
     dims = env.capabilities.motion_dims
+    size = np.asarray(env.action_low).size
     if dims is None:
         raise NotSlowableError(
             "this environment declares no motion_dims (Capabilities), so its skills cannot "

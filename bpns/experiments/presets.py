@@ -10,7 +10,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-from bpns.acting.config import MODES, SLOW_FROM
+from bpns.acting.config import MODES, ExecutionConfig, ExecutionConfigError
 from bpns.env.perturbations import Perturbation, PerturbationError
 from bpns.env.registry import environment_names
 from bpns.env.worlds import parse_model, parse_world
@@ -95,12 +95,13 @@ class SweepConfig:
             raise SweepConfigError(
                 f"demote_refuted must be a finite cost > 0, got {self.demote_refuted}"
             )
-        if self.world_speed is not None and not 0 < self.world_speed <= 1:
-            raise SweepConfigError(f"world_speed must be in (0, 1], got {self.world_speed}")
-        if self.slow_from is not None and self.slow_from not in SLOW_FROM:
-            raise SweepConfigError(
-                f"slow_from must be one of {', '.join(SLOW_FROM)}, got {self.slow_from!r}"
+        try:  # the execution settings every closed-loop cell will run with
+            ExecutionConfig(
+                world_speed=1.0 if self.world_speed is None else self.world_speed,
+                slow_from="start" if self.slow_from is None else self.slow_from,
             )
+        except ExecutionConfigError as err:
+            raise SweepConfigError(str(err)) from None
         self._check_worlds()
         if self.perturb_axis is not None and self.worlds:
             raise SweepConfigError("sweep either a perturbation axis or worlds, not both")

@@ -72,6 +72,7 @@ PROBES = [
     ((*EVAL, "--world-speed", "1.5"), "--world-speed: expected a number in (0, 1]"),
     (("experiment", "--world-speed", "2"), "--world-speed: expected a number in (0, 1]"),
     ((*EVAL, "--world-speed", "0.5", "--env", "stack"), "declares no motion_dims"),
+    (("experiment", "--env", "stack", "--world-speed", "0.5"), "declares no motion_dims"),
     ((*EVAL, "--out", "{w}/file"), "exists and is not a directory"),
     ((*EVAL, "--out", "{w}/results"), "exists; pass --overwrite"),
     ((*EVAL, "--video", "{w}/dir"), "is a directory"),
