@@ -77,6 +77,33 @@ def write_demonstrations(
     return n
 
 
+# Where each demonstration's task came from (``bpns demos`` since 2026-12-06): the task
+# stream's seed on the root, each demonstration's task index on its group, so that its
+# task (``env.task(index, seed, train=True)``) and its demonstrator (seeded
+# ``[seed, index]``) can be made again, e.g. to ask the demonstrator about other states.
+TASK_SEED, TASK_INDEX = "task_seed", "task"
+
+
+def task_origins(path: str | os.PathLike) -> list[tuple[int, int]]:
+    """(task seed, task index) of every demonstration in ``path``, in file order; a
+    :class:`DatasetError` when the file does not record them (older files: collect the
+    demonstrations again with ``bpns demos``)."""
+    root, demos = read_attributes(path)
+    seed = root.get(TASK_SEED)
+    indices = [d.get(TASK_INDEX) for d in demos]
+    if not _is_count(seed) or not all(_is_count(i) for i in indices):
+        raise DatasetError(
+            f"{path} does not record which task each demonstration solved (written before "
+            "task origins were stored, or not by `bpns demos`): collect them again with "
+            "`bpns demos`"
+        )
+    return [(int(seed), int(i)) for i in indices]  # type: ignore[arg-type]
+
+
+def _is_count(value: object) -> bool:
+    return isinstance(value, int | np.integer) and not isinstance(value, bool) and value >= 0
+
+
 def read_attributes(path: str | os.PathLike) -> tuple[dict, list[dict]]:
     """The root attributes and each demo's own (those besides the format's), as stored."""
     own = {"world", "goal", "objects", "horizon", "num_samples"}

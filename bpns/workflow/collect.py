@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bpns.atomic import require_free_space
-from bpns.data.datasets import min_demo_bytes, write_demonstrations
+from bpns.data.datasets import TASK_INDEX, TASK_SEED, min_demo_bytes, write_demonstrations
 from bpns.data.demo_attempts import demo_noise_of
 from bpns.data.demos import Progress, collect_attempts, no_progress
 from bpns.env.environment import Environment
@@ -80,11 +80,13 @@ def collect_demos(
                 failed.append(index)
                 why.append(attempt.explain(debug))
             elif worlds.nominal:
-                yield attempt.demo, {}
+                yield attempt.demo, {TASK_INDEX: index}
             else:
-                yield attempt.demo, {"physics": worlds.draw(index).to_json()}
+                yield attempt.demo, {TASK_INDEX: index, "physics": worlds.draw(index).to_json()}
 
-    root = {} if worlds.nominal else {"worlds": worlds.to_json()}
+    root: dict[str, str | int] = {TASK_SEED: seed}
+    if not worlds.nominal:
+        root["worlds"] = worlds.to_json()
     n = write_demonstrations(out, env, successful(), root)
     return DemosWritten(
         out,

@@ -12,6 +12,7 @@ from bpns.data.datasets import (
     iter_demonstrations,
     load_demonstrations,
     read_attributes,
+    task_origins,
 )
 from bpns.data.demos import check_replay, demo_physics, replay
 from bpns.env.worlds import WorldDistribution, parse_world
@@ -38,6 +39,26 @@ def test_each_demonstration_records_the_world_drawn_for_its_task(randomised):
     physics = demo_physics(path)
     assert physics == [worlds.draw(i) for i in tasks]
     assert all(1.5 <= p.mass_scale <= 2 for p in physics)
+
+
+def test_each_demonstration_records_the_task_it_solved(randomised, cover_env):
+    """The seed and index of its task: the task and its demonstrator can be made again
+    (corrections ask that demonstrator, or the oracle, about other states)."""
+    path, tasks = randomised
+    origins = task_origins(path)
+    assert origins == [(7, i) for i in tasks]
+    for (seed, index), demo in zip(origins, load_demonstrations(path, cover_env), strict=True):
+        init = cover_env.task(index, seed, True).init
+        np.testing.assert_array_equal(init.vec(init.objects), demo.states[0].vec(init.objects))
+
+
+def test_a_file_without_task_origins_says_how_to_get_them(tmp_path, cover_env, cover_demos):
+    from bpns.data.datasets import save_demonstrations
+
+    path = tmp_path / "plain.h5"
+    save_demonstrations(path, cover_env, cover_demos[:1])
+    with pytest.raises(DatasetError, match="collect them again with `bpns demos`"):
+        task_origins(path)
 
 
 def test_randomised_demonstrations_replay_exactly_in_their_own_worlds(randomised, cover_env):
