@@ -19,9 +19,12 @@ from bpns.cli.common import (
     tolerance_or_off,
 )
 from bpns.cli.paths import capped_to_cores, check_skills_dir, claimed, usable_cores, writing
-from bpns.data.datasets import DatasetError
-from bpns.env.environment import Environment
+from bpns.data.datasets import DatasetError, task_origins
+from bpns.env.environment import Environment, perturbed
+from bpns.env.perturbations import PerturbationError
+from bpns.env.worlds import parse_world
 from bpns.learning.config import LearningConfig, learning_config_for
+from bpns.learning.corrections import EXPERTS, CorrectionConfig
 from bpns.workflow import CannotLearnError, learn_to_directory
 
 HELP = "learn neuro-symbolic skills from demonstrations"
@@ -34,6 +37,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     _add_paper_arguments(p)
     _add_operator_arguments(p)
     _add_baseline_arguments(p)
+    _add_correction_arguments(p)
     _add_run_arguments(p)
 
 
@@ -152,6 +156,30 @@ def _add_baseline_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_correction_arguments(p: argparse.ArgumentParser) -> None:
+    """Corrections on the states the learned skills reach in perturbed worlds (DAgger)."""
+    p.add_argument(
+        "--corrections",
+        nargs="+",
+        metavar="PRESET|NAME=VALUE",
+        help="then replay every demonstration with the learned skills in worlds drawn as "
+        "`bpns eval --perturb` draws them, ask the expert on every state they reach, and "
+        "retrain the policies on its answers too (DAgger; e.g. `--corrections moderate`; "
+        "default: off). Needs demonstrations from `bpns demos` that record their tasks",
+    )
+    p.add_argument(
+        "--correction-rounds",
+        type=positive,
+        help="with --corrections: rounds of replaying and retraining (default 2)",
+    )
+    p.add_argument(
+        "--correction-expert",
+        choices=EXPERTS,
+        help="with --corrections: who labels, the environment's hand-written skills "
+        "(oracle, the default) or its scripted demonstrator",
+    )
+
+
 def _add_run_arguments(p: argparse.ArgumentParser) -> None:
     """How the run treats an existing --out and how much of the machine it uses."""
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
@@ -184,6 +212,7 @@ def run(args: argparse.Namespace) -> int:
         if value is not None and not args.baselines:
             raise UserError(f"{flag} applies to the baselines: add --baselines")
     env = file_env(args.demos, None)
+    corrections = correction_config_from(args, env)
     threads = capped_to_cores(args.threads, "--threads")
     workers = usable_cores() if args.workers is None else capped_to_cores(args.workers, "--workers")
     config = learning_config_from(args, env)
@@ -200,11 +229,45 @@ def run(args: argparse.Namespace) -> int:
                 stage_reporter(),
                 baselines=_baselines_config(args) if args.baselines else None,
                 workers=workers,
+                corrections=corrections,
             )
     except (DatasetError, CannotLearnError) as err:
         raise UserError(str(err)) from None
     print_lines(learned)
     return 0
+
+
+def correction_config_from(args: argparse.Namespace, env: Environment) -> CorrectionConfig | None:
+    """The corrections ``--corrections`` asks for (None: none), checked before any work:
+    the worlds against the environment, the expert against what it declares, and that
+    the demonstrations record their tasks."""
+    flags = {
+        "--correction-rounds": args.correction_rounds,
+        "--correction-expert": args.correction_expert,
+    }
+    if args.corrections is None:
+        for flag, value in flags.items():
+            if value is not None:
+                raise UserError(f"{flag} applies to corrections: add --corrections")
+        return None
+    try:
+        worlds = parse_world(args.corrections)
+        perturbed(env, worlds.draw(0))  # an environment without perturbations says so now
+    except PerturbationError as err:
+        raise UserError(f"--corrections: {err}") from None
+    expert = args.correction_expert or "oracle"
+    if expert == "oracle" and not env.capabilities.has_oracle_skills:
+        raise UserError(
+            f"--correction-expert oracle: environment {env.name!r} declares no oracle skills; "
+            "use --correction-expert demonstrator"
+        )
+    try:
+        task_origins(args.demos)
+    except DatasetError as err:
+        raise UserError(f"--corrections: {err}") from None
+    return CorrectionConfig(
+        worlds, rounds=args.correction_rounds or 2, expert=expert, seed=args.seed
+    )
 
 
 def learning_config_from(args: argparse.Namespace, env: Environment) -> LearningConfig:

@@ -7,6 +7,7 @@ import argparse
 from bpns.cli.common import learned_in, path_arg
 from bpns.learning import describe
 from bpns.learning.artifacts.pddl import domain_pddl
+from bpns.workflow.learn import corrections_note
 
 HELP = "inspect learned skills (`bpns skills show DIR`)"
 
@@ -25,4 +26,7 @@ def run(args: argparse.Namespace) -> int:
         print(domain_pddl(env.name, learned.types, learned.predicates, learned.operators), end="")
     else:
         print(describe(learned))
+        note = corrections_note(args.directory)
+        if note is not None:
+            print(note)
     return 0

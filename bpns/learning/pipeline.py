@@ -120,6 +120,11 @@ def derive_seed(seed: int, skill_index: int, role: int) -> int:
 _POLICY, _SAMPLER = 0, 1
 
 
+def policy_seed(seed: int, skill_index: int) -> int:
+    """The seed skill ``skill_index``'s policy is trained with (learning seed ``seed``)."""
+    return derive_seed(seed, skill_index, _POLICY)
+
+
 class _Timer:
     def __init__(self) -> None:
         self.seconds: dict[str, float] = {}
@@ -297,9 +302,7 @@ class _Submitter:
         with self.timer.stage(POLICIES):
             scopes, dims, actions = policy_data(dataset, shared, config)
         policy = self.trainer.submit(
-            policy_job(
-                scopes, actions, dims, config, derive_seed(config.seed, k, _POLICY), self.threads
-            )
+            policy_job(scopes, actions, dims, config, policy_seed(config.seed, k), self.threads)
         )
         fit = generator = classifier = None
         negatives = 0

@@ -4,6 +4,7 @@ a skills directory (``bpns learn``, ``bpns run``)."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -11,11 +12,17 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bpns.baselines.learn import STAGES, learn_baselines, save_baselines
-from bpns.data.datasets import count_demonstrations, iter_demonstrations
+from bpns.data.datasets import count_demonstrations, iter_demonstrations, task_origins
 from bpns.data.demos import Progress, no_progress
 from bpns.env.environment import Environment
 from bpns.errors import BpnsError
 from bpns.learning import learn_skills, save_skills
+from bpns.learning.corrections import (
+    CorrectionConfig,
+    DemoOrigin,
+    RoundReport,
+    improve_with_corrections,
+)
 from bpns.learning.given import given_skills_of
 
 if TYPE_CHECKING:
@@ -23,6 +30,29 @@ if TYPE_CHECKING:
     from bpns.baselines.learn import BaselinesConfig
     from bpns.learning.config import LearningConfig
     from bpns.learning.pipeline import LearnedSkills
+
+
+#: what the policies were corrected with, beside the skills (``bpns learn --corrections``)
+CORRECTIONS_RECORD = "corrections.json"
+
+
+def corrections_note(directory: Path) -> str | None:
+    """One line on the corrections the policies in ``directory`` were retrained on
+    (``CORRECTIONS_RECORD``), None when they were not; a record that cannot be read
+    says so instead of failing (it describes the skills, it does not define them)."""
+    path = Path(directory) / CORRECTIONS_RECORD
+    if not path.exists():
+        return None
+    try:
+        record = json.loads(path.read_text())
+        rounds = record["per_round"]
+        total = sum(int(n) for n in rounds[-1]["corrections"].values()) if rounds else 0
+        return (
+            f"policies retrained on {total} corrections by the {record['expert']} in "
+            f"{record['worlds']} worlds over {len(rounds)} round(s) ({CORRECTIONS_RECORD})"
+        )
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError) as err:
+        return f"{path}: unreadable record of corrections ({type(err).__name__})"
 
 
 class CannotLearnError(BpnsError, ValueError):
@@ -37,6 +67,7 @@ class LearnedRun:
     load_seconds: float
     out: Path
     baseline_seconds: tuple[tuple[str, float], ...] | None = None  # per baseline learned
+    corrections: tuple[RoundReport, ...] = ()  # per round, when corrections were asked for
 
     def lines(self) -> list[str]:
         stats = self.learned.stats
@@ -47,6 +78,7 @@ class LearnedRun:
             f"loading) -> {self.out}",
             f"  {stats}",
         ]
+        out.extend(f"  {r.line(k)}" for k, r in enumerate(self.corrections, 1))
         if self.baseline_seconds is not None:
             out.append(
                 "  baselines: "
@@ -78,15 +110,22 @@ def learn_to_directory(
     report: Callable[[str], None] | None = None,
     baselines: BaselinesConfig | None = None,
     workers: int = 1,
+    corrections: CorrectionConfig | None = None,
 ) -> LearnedRun:
     """Learn skills from the first ``limit`` (default: all) demonstrations of
     ``demos_path`` and save them to ``out`` (replacing it); with ``baselines`` also the
     paper's baselines from the same demonstrations, saved beside them
     (:mod:`bpns.baselines.learn`); ``workers`` processes train the skills' networks.
-    Raises ``bpns.data.datasets.DatasetError`` for a bad
-    file and :class:`CannotLearnError` when the demos cannot be learned from."""
+    With ``corrections`` the policies are then retrained on the expert's corrections in
+    those worlds (:mod:`bpns.learning.corrections`; the file must record its tasks'
+    origins), recorded in ``out/corrections.json``. Raises
+    ``bpns.data.datasets.DatasetError`` for a bad file and :class:`CannotLearnError`
+    when the demos cannot be learned from."""
     total = count_demonstrations(demos_path)
     n = min(total, limit or total)
+    origins = None
+    if corrections is not None:  # checked before anything is learned
+        origins = [DemoOrigin(seed, index) for seed, index in task_origins(demos_path)[:n]]
     t0 = time.perf_counter()
     loading = iter_demonstrations(demos_path, env, range(n), features_only=True)
     demos = list(progress(loading, n, "load", "demo"))
@@ -106,6 +145,11 @@ def learn_to_directory(
         )
     except ValueError as err:
         raise CannotLearnError(f"cannot learn from {demos_path}: {err}") from None
+    rounds: tuple[RoundReport, ...] = ()
+    if corrections is not None and origins is not None:
+        learned, rounds = improve_with_corrections(
+            env, learned, origins, corrections, workers, report
+        )
     learned_baselines = None
     if baselines is not None:  # before saving anything: stopped while they train (the
         # longest stage), the old `out` is left whole, not new skills without baselines
@@ -118,12 +162,18 @@ def learn_to_directory(
             report=report,
             given=given_skills_of(env),
         )
-    beside = None
     baseline_seconds = None
-    if learned_baselines is not None:  # into the new directory before it replaces `out`
-        beside = lambda d: save_baselines(learned_baselines, d, env.name)  # noqa: E731
+    if learned_baselines is not None:
         baseline_seconds = learned_baselines.stage_seconds
+
+    def beside(directory: Path) -> None:  # into the new directory before it replaces `out`
+        if learned_baselines is not None:
+            save_baselines(learned_baselines, directory, env.name)
+        if corrections is not None:
+            record = {**corrections.to_json(), "per_round": [r.to_json() for r in rounds]}
+            (directory / CORRECTIONS_RECORD).write_text(json.dumps(record, indent=2) + "\n")
+
     save_skills(learned, out, overwrite=True, env_name=env.name, beside=beside)
     # the segments hold every demonstration's states: not kept through what comes next
     learned = dataclasses.replace(learned, segments=())
-    return LearnedRun(learned, env.name, n, load_seconds, out, baseline_seconds)
+    return LearnedRun(learned, env.name, n, load_seconds, out, baseline_seconds, rounds)

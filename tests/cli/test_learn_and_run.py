@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 import imageio.v2 as imageio
+import numpy as np
 import pytest
 
 from bpns.cli import main
@@ -175,6 +176,39 @@ def test_learning_settings_come_from_the_environment_unless_given(run_dir, tmp_p
     assert all(getattr(config("--input-margin", "off"), n).input_margin is None for n in nets)
     assert config("--subgoal-noise", "independent").correlated_subgoal_noise is False
     assert config("--subgoal-noise", "correlated").correlated_subgoal_noise is True
+
+
+def test_learn_with_corrections_retrains_policies_and_records_how(run_dir, tmp_path, capsys):
+    """`bpns learn --corrections`: the demonstrations' tasks replayed by the learned skills
+    in perturbed worlds, the oracle's labels learned; the record beside the skills, a
+    line in the summary and in `bpns skills show`; samplers and operators unchanged."""
+    demos = str(run_dir / "demos.h5")
+    plain, corrected = tmp_path / "plain", tmp_path / "corrected"
+    assert main(["learn", demos, "--limit", "4", "--out", str(plain)]) == 0
+    args = ["learn", demos, "--limit", "4", "--out", str(corrected)]
+    assert main([*args, "--corrections", "latency=1", "--correction-rounds", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "corrections round 1: " in out and " rollouts completed every segment" in out
+    record = json.loads((corrected / "corrections.json").read_text())
+    assert record["worlds"] == "latency=1" and record["expert"] == "oracle"
+    (only,) = record["per_round"]
+    assert only["rollouts"] == 4 and sum(only["corrections"].values()) > 0
+    index = {p.name: json.loads((p / "skills.json").read_text()) for p in (plain, corrected)}
+    assert index["plain"]["skills"] == index["corrected"]["skills"]  # the same operators
+
+    def same(name: str | None) -> bool:  # the same weights in both directories
+        if name is None:
+            return True
+        a, b = np.load(plain / name), np.load(corrected / name)
+        return a.files == b.files and all(np.array_equal(a[k], b[k]) for k in a.files)
+
+    entries = index["plain"]["skills"]
+    assert all(same(e["sampler"]) for e in entries)
+    changed = [e["name"] for e in entries if not same(e["policy"])]
+    assert sorted(changed) == sorted(n for n, k in only["corrections"].items() if k > 0)
+    assert main(["skills", "show", str(corrected)]) == 0
+    assert "policies retrained on " in capsys.readouterr().out
+    assert not (plain / "corrections.json").exists()
 
 
 def test_a_damaged_skills_directory_is_reported_not_raised(run_dir, tmp_path):

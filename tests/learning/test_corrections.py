@@ -1,0 +1,175 @@
+"""Corrections (DAgger): who labels a segment, what retraining keeps, and the whole loop in
+a perturbed Cover world."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+import pytest
+import torch
+
+from bpns.env.abstraction import abstract
+from bpns.env.worlds import parse_world
+from bpns.learning.config import learning_config_for
+from bpns.learning.corrections import (
+    Correction,
+    CorrectionConfig,
+    DemoOrigin,
+    improve_with_corrections,
+    oracle_step,
+    retrain_policies,
+    skill_datasets,
+)
+from bpns.learning.pipeline import learn_skills
+from bpns.structs import GroundAtom, LiftedAtom, Segment, Skill, State, STRIPSOperator, Variable
+from tests import toy_learning as toy
+
+# -- which hand-written skill labels a segment -----------------------------------------
+
+
+_R, _B, _T = Variable("?r", toy.ROBOT), Variable("?b", toy.BLOCK), Variable("?t", toy.TARGET)
+
+
+def _atom(predicate, *variables: Variable) -> LiftedAtom:
+    return LiftedAtom(predicate, variables)
+
+
+def _operator(name: str, pre, add, delete=()) -> STRIPSOperator:
+    r, b, t = _R, _B, _T
+    params = tuple(v for v in (r, b, t) if any(v in a.variables for a in (*pre, *add, *delete)))
+    return STRIPSOperator(name, params, frozenset(pre), frozenset(add), frozenset(delete))
+
+
+def _still(state: State, objects, subgoal: np.ndarray) -> np.ndarray:
+    return np.zeros(2)
+
+
+def _nowhere(state: State, objects, rng: np.random.Generator) -> np.ndarray:
+    return np.zeros(1)
+
+
+def _skill(op: STRIPSOperator) -> Skill:
+    return Skill(op, policy=_still, sampler=_nowhere)
+
+
+def test_the_oracle_for_a_segment_does_what_it_did_and_nothing_it_did_not():
+    empty, holding = _atom(toy.HAND_EMPTY, _R), _atom(toy.HOLDING, _R, _B)
+    covers = _atom(toy.COVERS, _B, _T)
+    pick = _operator("Pick", [empty], [holding], [empty])
+    # adds Holding too, but also something the segment did not do: second choice
+    grab_and_cover = _operator("GrabCover", [empty], [holding, covers])
+    place = _operator("Place", [holding], [covers])
+    robot, (block,) = toy.ROBOT_OBJ, toy.blocks(1)
+    before = toy.make_state(0.0, [1.0], [3.0])
+    after = toy.make_state(1.0, [1.0], [3.0], held=0)
+    segment = Segment(
+        (before, after),
+        np.zeros((1, 2)),
+        frozenset(abstract(before, toy.PREDICATES)),
+        frozenset(abstract(after, toy.PREDICATES)),
+    )
+    assert GroundAtom(toy.HOLDING, (robot, block)) in segment.add_effects
+    oracle = [_skill(place), _skill(grab_and_cover), _skill(pick)]
+    step = oracle_step(oracle, segment, before.objects)
+    assert step is not None and oracle[step.skill].operator.name == "Pick"
+    assert step.objects == (robot, block)
+    np.testing.assert_array_equal(step.subgoal, after.vec([robot, block]))
+    # nothing adds what the segment did: no expert for it
+    assert oracle_step([_skill(place)], segment, before.objects) is None
+
+
+# -- retraining ----------------------------------------------------------------------------
+
+
+def test_retraining_without_corrections_keeps_every_network():
+    skills = toy.learned_toy_skills()
+    datasets = skill_datasets(skills)
+    again = retrain_policies(skills, datasets, [])
+    assert all(a.policy is b.policy for a, b in zip(again.skills, skills.skills, strict=True))
+
+
+def test_a_retrained_policy_answers_the_expert_where_it_was_corrected():
+    """Corrections at states no demonstration visited move the policy there towards the
+    expert's command; skills without corrections keep their networks."""
+    skills = toy.learned_toy_skills()
+    datasets = skill_datasets(skills)
+    k = next(i for i, s in enumerate(skills.skills) if s.operator.name.startswith("Holding"))
+    skill, objects = skills.skills[k], datasets[k].bindings[0]
+    seg = datasets[k].segments[0]
+    scope = skill.policy.dims.scope(objects)
+    subgoal = seg.states[-1].vec(scope)
+    # the robot far beyond anything demonstrated
+    far = State({**seg.states[0].data, objects[0]: np.array([toy.WORLD + 5.0, 0.0])})
+    command = np.array([-toy.SPEED, 0.0])
+    before = skill.policy(far, objects, subgoal)
+    rows = [Correction(k, far.vec(scope), subgoal, command) for _ in range(400)]
+    torch.set_num_threads(1)
+    again = retrain_policies(skills, datasets, rows)
+    after = again.skills[k].policy(far, objects, subgoal)
+    assert abs(after[0] - command[0]) < abs(before[0] - command[0])
+    assert abs(after[0] - command[0]) < 0.1
+    others = [i for i in range(len(skills.skills)) if i != k]
+    assert all(again.skills[i].policy is skills.skills[i].policy for i in others)
+
+
+def test_correction_settings_are_checked():
+    worlds = parse_world(["latency=1"])
+    with pytest.raises(ValueError, match="rounds"):
+        CorrectionConfig(worlds, rounds=0)
+    with pytest.raises(ValueError, match="expert must be one of"):
+        CorrectionConfig(worlds, expert="teacher")
+    with pytest.raises(ValueError, match="expert_mix"):
+        CorrectionConfig(worlds, expert_mix=1.5)
+    with pytest.raises(ValueError, match="horizon_scale"):
+        CorrectionConfig(worlds, horizon_scale=float("nan"))
+
+
+# -- the loop in physics -------------------------------------------------------------------
+
+
+@functools.cache
+def _cover_skills(cover_env_name: str = "cover"):
+    from bpns.data.demos import run_demonstrator
+    from bpns.env.registry import make_environment
+
+    env = make_environment(cover_env_name)
+    origins = [DemoOrigin(7, i) for i in range(3)]
+    demos = [
+        run_demonstrator(env, env.task(o.index, o.seed, True), [o.seed, o.index]) for o in origins
+    ]
+    net = toy.MLPConfig(num_steps=300, batch_size=128)
+    config = dataclasses.replace(
+        learning_config_for(env), policy=net, generator=net, classifier=net
+    )
+    torch.set_num_threads(1)
+    skills = learn_skills(demos, env.predicates, env.contact_predicates, config)
+    return env, skills, origins
+
+
+def test_with_the_oracle_acting_every_rollout_completes_its_demonstration():
+    """The oracle chosen for each segment, acting towards the segment's final state in
+    a world with a step of latency, takes the task through every segment: the labels
+    are what the subgoal asks for."""
+    env, skills, origins = _cover_skills()
+    config = CorrectionConfig(parse_world(["latency=1"]), rounds=1, expert_mix=1.0)
+    _, (report,) = improve_with_corrections(env, skills, origins, config)
+    assert report.completed == len(origins)
+    assert all(r.corrections > 0 for r in report.rollouts)
+
+
+def test_corrections_retrain_the_policies_of_the_skills_they_label():
+    env, skills, origins = _cover_skills()
+    config = CorrectionConfig(parse_world(["latency=1"]), rounds=1)
+    lines: list[str] = []
+    improved, (report,) = improve_with_corrections(
+        env, skills, origins, config, report=lines.append
+    )
+    labelled = {name for name, n in report.corrections if n > 0}
+    assert labelled, "the learned skills acted, so the oracle was asked"
+    for old, new in zip(skills.skills, improved.skills, strict=True):
+        assert (old.policy is not new.policy) == (old.name in labelled)
+        assert old.sampler is new.sampler and old.operator == new.operator
+    assert lines and lines[0].startswith("corrections round 1:")
+    assert len(report.rollouts) == len(origins)
