@@ -14,9 +14,11 @@ from tqdm import tqdm
 
 from bpns.approaches import UnknownApproachError, get_approach
 from bpns.data.datasets import not_a_demo_file
-from bpns.env.environment import eval_set_of
+from bpns.env.environment import eval_set_of, perturbed
 from bpns.env.object_counts import PAPER, EvalSet, ObjectCountError, ObjectCounts
+from bpns.env.perturbations import PerturbationError
 from bpns.env.registry import PluginError, UnknownEnvironmentError, make_environment
+from bpns.env.worlds import parse_world
 from bpns.errors import BpnsError
 from bpns.execution.executor import NotSlowableError, motion_index
 from bpns.learning.artifacts.learned import load_learned
@@ -96,6 +98,23 @@ def fraction(text: str) -> float:
     if not 0.0 < v <= 1.0:  # nan fails every comparison: refused here
         raise argparse.ArgumentTypeError(f"expected a number in (0, 1], got {text}")
     return v
+
+
+def check_correctable(env, worlds: list[str], flag: str, expert: str = "oracle"):
+    """The worlds ``flag`` corrects skills in, parsed and checked against ``env`` (it
+    can be perturbed so, and declares the expert), before any work."""
+    try:
+        parsed = parse_world(worlds)
+        perturbed(env, parsed.draw(0))  # an environment without perturbations says so now
+    except PerturbationError as err:
+        raise UserError(f"{flag}: {err}") from None
+    if expert == "oracle" and not env.capabilities.has_oracle_skills:
+        raise UserError(
+            f"{flag}: environment {env.name!r} declares no oracle skills to label "
+            "corrections; label with its demonstrator (`bpns learn --correction-expert "
+            "demonstrator`)"
+        )
+    return parsed
 
 
 def check_slowable(env, speed: float) -> None:

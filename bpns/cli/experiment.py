@@ -17,6 +17,7 @@ from bpns.approaches import get_approach
 from bpns.cli.common import (
     Terminated,
     UserError,
+    check_correctable,
     check_slowable,
     fraction,
     path_arg,
@@ -137,6 +138,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="with --world-speed: from the task's start (default) or the first deviation",
     )
     parser.add_argument(
+        "--corrections",
+        nargs="+",
+        metavar="PRESET|NAME=VALUE",
+        help="skills cells learn as `bpns learn --corrections ...` does: policies retrained "
+        "on the oracle's corrections in these worlds (DAgger; default: none)",
+    )
+    parser.add_argument(
+        "--correction-rounds",
+        type=_count,
+        help="with --corrections: rounds of replaying and retraining (default 2)",
+    )
+    parser.add_argument(
         "--workers",
         type=_count,
         default=1,
@@ -182,6 +195,8 @@ def sweep_config(args: argparse.Namespace) -> SweepConfig:
             demote_refuted=args.demote_refuted,
             world_speed=args.world_speed,
             slow_from=args.slow_from,
+            corrections=None if args.corrections is None else " ".join(args.corrections),
+            correction_rounds=args.correction_rounds,
         )
     except SweepConfigError as err:
         raise UserError(str(err)) from None
@@ -312,6 +327,10 @@ def command_line(config: SweepConfig, out: Path, args: argparse.Namespace) -> st
         argv += ["--world-speed", f"{config.world_speed:g}"]
     if config.slow_from is not None:
         argv += ["--slow-from", config.slow_from]
+    if config.corrections is not None:
+        argv += ["--corrections", *config.corrections.split()]
+    if config.correction_rounds is not None:
+        argv += ["--correction-rounds", str(config.correction_rounds)]
     argv += ["--workers", str(args.workers)]
     if args.backend != "pool":
         argv += ["--backend", args.backend]
@@ -334,6 +353,8 @@ def run(args: argparse.Namespace) -> int:
     check_objects_axis(config, envs)
     for env in envs.values():
         check_slowable(env, 1.0 if config.world_speed is None else config.world_speed)
+        if config.corrections is not None:
+            check_correctable(env, config.corrections.split(), "--corrections")
     out: Path = args.out or Path("outputs") / "experiments" / config.name
     if args.report_only or args.dry_run:
         if out.exists() and not out.is_dir():

@@ -8,6 +8,7 @@ import dataclasses
 from bpns.baselines.learn import BaselinesConfig
 from bpns.cli.common import (
     UserError,
+    check_correctable,
     file_env,
     nonnegative,
     nonnegative_float,
@@ -20,9 +21,7 @@ from bpns.cli.common import (
 )
 from bpns.cli.paths import capped_to_cores, check_skills_dir, claimed, usable_cores, writing
 from bpns.data.datasets import DatasetError, task_origins
-from bpns.env.environment import Environment, perturbed
-from bpns.env.perturbations import PerturbationError
-from bpns.env.worlds import parse_world
+from bpns.env.environment import Environment
 from bpns.learning.config import LearningConfig, learning_config_for
 from bpns.learning.corrections import EXPERTS, CorrectionConfig
 from bpns.workflow import CannotLearnError, learn_to_directory
@@ -178,6 +177,12 @@ def _add_correction_arguments(p: argparse.ArgumentParser) -> None:
         help="with --corrections: who labels, the environment's hand-written skills "
         "(oracle, the default) or its scripted demonstrator",
     )
+    p.add_argument(
+        "--correction-relabel",
+        action="store_true",
+        help="with --corrections: the oracle labels the demonstrations' own states too, so "
+        "that a segment's labels come from one expert",
+    )
 
 
 def _add_run_arguments(p: argparse.ArgumentParser) -> None:
@@ -244,29 +249,27 @@ def correction_config_from(args: argparse.Namespace, env: Environment) -> Correc
     flags = {
         "--correction-rounds": args.correction_rounds,
         "--correction-expert": args.correction_expert,
+        "--correction-relabel": args.correction_relabel or None,
     }
     if args.corrections is None:
         for flag, value in flags.items():
             if value is not None:
                 raise UserError(f"{flag} applies to corrections: add --corrections")
         return None
-    try:
-        worlds = parse_world(args.corrections)
-        perturbed(env, worlds.draw(0))  # an environment without perturbations says so now
-    except PerturbationError as err:
-        raise UserError(f"--corrections: {err}") from None
     expert = args.correction_expert or "oracle"
-    if expert == "oracle" and not env.capabilities.has_oracle_skills:
-        raise UserError(
-            f"--correction-expert oracle: environment {env.name!r} declares no oracle skills; "
-            "use --correction-expert demonstrator"
-        )
+    if args.correction_relabel and expert != "oracle":
+        raise UserError("--correction-relabel needs the oracle as --correction-expert")
+    worlds = check_correctable(env, args.corrections, "--corrections", expert)
     try:
         task_origins(args.demos)
     except DatasetError as err:
         raise UserError(f"--corrections: {err}") from None
     return CorrectionConfig(
-        worlds, rounds=args.correction_rounds or 2, expert=expert, seed=args.seed
+        worlds,
+        rounds=args.correction_rounds or 2,
+        expert=expert,
+        seed=args.seed,
+        relabel=args.correction_relabel,
     )
 
 

@@ -58,6 +58,17 @@ class Cell:
     objects: str | None = None  # eval cells of an object axis: "button=5" (bpns eval --objects)
     world_speed: float = 1.0  # closed-loop eval cells: ExecutionConfig.world_speed
     slow_from: str = "start"  # and ExecutionConfig.slow_from (with a world_speed below 1)
+    # skills cells and their eval cells: policies retrained on corrections in these worlds
+    # (``bpns learn --corrections``), over ``correction_rounds`` rounds
+    corrections: str | None = None
+    correction_rounds: int = 2
+
+    @property
+    def corrected(self) -> str:
+        """The part of a key that says the skills were corrected ("" when not)."""
+        if self.corrections is None:
+            return ""
+        return f"-corr{_slug(self.corrections)}x{self.correction_rounds}"
 
     @property
     def key(self) -> str:
@@ -78,9 +89,10 @@ class Cell:
                 level += f"-speed{level_label(self.world_speed)}"
                 if self.slow_from != "start":
                     level += f"-from{self.slow_from}"
-            return f"{EVAL}/{self.env}-{self.approach}{count}{level}-seed{self.seed}"
+            corrected = self.corrected
+            return f"{EVAL}/{self.env}-{self.approach}{count}{corrected}{level}-seed{self.seed}"
         if self.kind == SKILLS:
-            return f"{SKILLS}/{self.env}{count}-seed{self.seed}"
+            return f"{SKILLS}/{self.env}{count}{self.corrected}-seed{self.seed}"
         return f"{DEMOS}/{self.env}-seed{self.seed}"
 
     @property
@@ -96,6 +108,8 @@ class Cell:
             s["learning"] = dataclasses.asdict(self.learning)  # type: ignore[arg-type]
             if self.baselines:  # (absent when False: cells stored before keep matching)
                 s["baselines"] = True
+            if self.corrections is not None:  # (absent when none, likewise)
+                s["corrections"] = {"worlds": self.corrections, "rounds": self.correction_rounds}
         else:
             s.update(
                 approach=self.approach,
@@ -115,6 +129,8 @@ class Cell:
                 s["model"] = self.model
             if self.objects is not None:  # (absent: cells stored before keep matching)
                 s["objects"] = self.objects
+            if self.corrections is not None:  # (absent when none, likewise)
+                s["corrections"] = {"worlds": self.corrections, "rounds": self.correction_rounds}
             if self.world_speed != 1.0:  # (absent at full speed, likewise)
                 s["world_speed"] = self.world_speed
                 if self.slow_from != "start":
@@ -141,6 +157,8 @@ class Cell:
             parts.append(f"world speed {self.world_speed:g}")
             if self.slow_from != "start":
                 parts.append(f"from the first {self.slow_from}")
+        if self.corrections is not None:
+            parts.append(f"corrected in {self.corrections} x{self.correction_rounds}")
         parts.append(f"seed {self.seed}")
         return " ".join(parts)
 
@@ -176,13 +194,15 @@ def plan_cells(config: SweepConfig, envs: Mapping[str, Environment]) -> list[Cel
                     deps=(demo_cell.key,),
                     learning=learning_config_for(env, seed=seed),
                     baselines=any(approach_info.needs_baselines(a) for a in config.approaches),
+                    **_corrections(config),
                 )
                 if any(approach_info.uses_learned_skills(a) for a in config.approaches):
                     skills.append(skill_cell)
                 for approach in config.approaches:
                     if approach_info.uses_learned_skills(approach):
                         deps = (skill_cell.key,)
-                        evals += _eval_cells(name, seed, count, approach, base, config, deps)
+                        cells = _eval_cells(name, seed, count, approach, base, config, deps)
+                        evals += [dataclasses.replace(c, **_corrections(config)) for c in cells]
     if not skills:  # nothing learns: no demonstrations needed
         demos = []
     cells = demos + skills + evals
@@ -232,6 +252,14 @@ def _eval_cells(
         for world, execution in config.conditions()
         for objects in config.object_levels()
     ]
+
+
+def _corrections(config: SweepConfig) -> dict[str, Any]:
+    """The corrections fields of a skills cell and of the eval cells of its skills."""
+    if config.corrections is None:
+        return {}
+    rounds = 2 if config.correction_rounds is None else config.correction_rounds
+    return {"corrections": config.corrections, "correction_rounds": rounds}
 
 
 def _world_speed(config: SweepConfig, execution: str | None) -> float:

@@ -57,6 +57,10 @@ class SweepConfig:
     # it takes effect (ExecutionConfig.slow_from; None: from the start)
     world_speed: float | None = None
     slow_from: str | None = None
+    # skills retrained on the oracle's corrections in these worlds (``bpns learn
+    # --corrections``; None: none), over this many rounds (None: 2)
+    corrections: str | None = None
+    correction_rounds: int | None = None
 
     def __post_init__(self) -> None:
         for field in ("envs", "demo_counts", "seeds", "approaches"):
@@ -103,6 +107,7 @@ class SweepConfig:
         except ExecutionConfigError as err:
             raise SweepConfigError(str(err)) from None
         self._check_worlds()
+        self._check_corrections()
         if self.perturb_axis is not None and self.worlds:
             raise SweepConfigError("sweep either a perturbation axis or worlds, not both")
         self._check_objects_axis()
@@ -115,6 +120,19 @@ class SweepConfig:
             raise SweepConfigError(f"object axis {kind}: empty, repeated or negative counts")
         if self.perturb_axis is not None or self.worlds:
             raise SweepConfigError("sweep one axis: objects, a perturbation or worlds")
+
+    def _check_corrections(self) -> None:
+        if self.corrections is None:
+            if self.correction_rounds is not None:
+                raise SweepConfigError("correction_rounds applies to corrections: give them")
+            return
+        try:
+            parse_world(self.corrections.split())
+        except PerturbationError as err:
+            raise SweepConfigError(f"corrections {self.corrections!r}: {err}") from None
+        rounds = self.correction_rounds
+        if rounds is not None and (not isinstance(rounds, int) or rounds < 1):
+            raise SweepConfigError(f"correction_rounds must be a whole number >= 1, got {rounds}")
 
     def _check_worlds(self) -> None:
         for world in self.worlds:
@@ -193,6 +211,8 @@ class SweepConfig:
             del d["world_speed"]
         if self.slow_from is None:  # (absent, likewise)
             del d["slow_from"]
+        if self.corrections is None:  # (absent, likewise)
+            del d["corrections"], d["correction_rounds"]
         if not self.worlds and not self.executions and self.model == "nominal":
             del d["worlds"], d["executions"], d["model"]  # (absent, likewise)
         return d

@@ -24,6 +24,7 @@ from bpns.env.worlds import WorldDistribution, parse_model, parse_world
 from bpns.evaluation.evaluate import EvalSpec, evaluate
 from bpns.evaluation.reporting import save_plans
 from bpns.experiments.cells import DEMOS, EVAL, SKILLS, SWEEP_GNN_SEED, Cell
+from bpns.learning.corrections import CorrectionConfig
 from bpns.workflow import collect_demos, learn_to_directory
 
 
@@ -95,6 +96,13 @@ def _learn(job: CellJob) -> dict[str, Any]:
     assert job.cell.learning is not None and job.num_demos is not None
     env = make_environment(job.cell.env)
     baselines = BaselinesConfig(seed=SWEEP_GNN_SEED) if job.cell.baselines else None
+    corrections = None
+    if job.cell.corrections is not None:
+        corrections = CorrectionConfig(
+            parse_world(job.cell.corrections.split()),
+            rounds=job.cell.correction_rounds,
+            seed=job.cell.seed,
+        )
     run = learn_to_directory(
         env,
         Path(job.inputs[0]),
@@ -103,6 +111,7 @@ def _learn(job: CellJob) -> dict[str, Any]:
         limit=job.num_demos,
         threads=1,
         baselines=baselines,
+        corrections=corrections,
     )
     stats = run.learned.stats
     assert stats is not None
@@ -115,6 +124,7 @@ def _learn(job: CellJob) -> dict[str, Any]:
         "stage_seconds": dict(stats.stage_seconds),
         "load_seconds": run.load_seconds,
         "stats": str(stats),
+        "corrections": [r.to_json() for r in run.corrections],
     }
 
 

@@ -67,7 +67,10 @@ class CorrectionConfig:
     ``expert``: who labels (module docstring). ``expert_mix``: the probability that a
     step executes the expert's command instead of the learner's (DAgger's beta; the
     label is recorded either way). ``horizon_scale``: a skill's learned horizon times
-    this in the world (as ``ExecutionConfig.horizon_scale``). ``seed``: the mixing."""
+    this in the world (as ``ExecutionConfig.horizon_scale``). ``seed``: the mixing.
+    ``relabel``: the demonstrations' own states are labelled by the oracle too, so that
+    every label of a segment it can do comes from one expert (its commands differ from
+    the demonstrator's on the demonstrator's own states)."""
 
     worlds: WorldDistribution
     rounds: int = 1
@@ -75,6 +78,7 @@ class CorrectionConfig:
     expert_mix: float = 0.0
     horizon_scale: float = 2.0
     seed: int = 0
+    relabel: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.rounds, int) or self.rounds < 1:
@@ -85,6 +89,8 @@ class CorrectionConfig:
             raise ValueError(f"expert_mix must be in [0, 1], got {self.expert_mix}")
         if not 0.0 < self.horizon_scale < math.inf:
             raise ValueError(f"horizon_scale must be finite and > 0, got {self.horizon_scale}")
+        if self.relabel and self.expert != "oracle":
+            raise ValueError("relabel needs the oracle as the expert")
 
     @property
     def rollout_worlds(self) -> WorldDistribution:
@@ -101,6 +107,7 @@ class CorrectionConfig:
             "expert_mix": self.expert_mix,
             "horizon_scale": self.horizon_scale,
             "seed": self.seed,
+            "relabel": self.relabel,
         }
 
 
@@ -409,29 +416,54 @@ def collect_corrections(
         yield from bounded_map(pool, run_rollout, jobs, in_flight=4 * workers)
 
 
+def oracle_labels(env: Environment, skills: LearnedSkills) -> dict[int, np.ndarray]:
+    """``id(segment)`` -> the oracle's command on each of its states (checked and
+    clipped as the demonstrator's were), for every segment of the skills'
+    demonstrations that an oracle skill can do (:func:`oracle_step`)."""
+    oracle = hand_written(env)
+    out: dict[int, np.ndarray] = {}
+    for segments in skills.segments:
+        for seg in segments:
+            step = oracle_step(oracle, seg, seg.states[0].objects)
+            if step is None:
+                continue
+            policy = oracle[step.skill].policy
+            commands = [
+                env.check_action(policy(s, step.objects, step.subgoal)) for s in seg.states[:-1]
+            ]
+            out[id(seg)] = np.asarray(commands, np.float64).reshape(seg.actions.shape)
+    return out
+
+
 def retrain_policies(
     skills: LearnedSkills,
     datasets: Sequence[SkillDataset],
     corrections: Sequence[Correction],
+    relabelled: dict[int, np.ndarray] | None = None,
 ) -> LearnedSkills:
     """``skills`` with every learned policy that has corrections retrained on its own
     data plus them (each a one-step row: its scope, then the subgoal as the row's end),
     with the seed and the scope dimensions it was trained with; the others keep their
-    networks."""
+    networks. ``relabelled``: labels replacing a segment's own (:func:`oracle_labels`);
+    a policy with any of them is retrained too."""
     config = skills.config
+    relabelled = relabelled or {}
     by_skill: dict[int, list[Correction]] = {}
     for c in corrections:
         by_skill.setdefault(c.skill, []).append(c)
     new: list[Skill] = []
     for k, (skill, dataset) in enumerate(zip(skills.skills, datasets, strict=True)):
-        rows, old = by_skill.get(k), skill.policy
-        if not rows or not isinstance(old, LearnedPolicy):
+        rows, old = by_skill.get(k, []), skill.policy
+        shared = shared_data(datasets, k) if config.share_effect_data else None
+        own = dataset.segments if shared is None else shared.segments
+        relabel = [relabelled.get(id(seg)) for seg in own]
+        if not isinstance(old, LearnedPolicy) or not (rows or any(r is not None for r in relabel)):
             new.append(skill)
             continue
-        shared = shared_data(datasets, k) if config.share_effect_data else None
         scopes, dims, actions = policy_data(dataset, shared, config)
         if not _same_dims(dims, old.dims):
             raise ValueError(f"{skill.name}: its segments give other scope dimensions")
+        actions = [a if r is None else r for a, r in zip(actions, relabel, strict=True)]
         policy = train_policy(
             [*scopes, *(np.stack([c.scope, c.subgoal]) for c in rows)],
             [*actions, *(c.command[None, :] for c in rows)],
@@ -466,6 +498,7 @@ def improve_with_corrections(
     current skills, then every policy retrained on its data and all corrections so far
     with the seeds learning drew."""
     datasets = skill_datasets(skills)
+    relabelled = oracle_labels(env, skills) if config.relabel else None
     say = report or (lambda message: None)
     corrections: list[Correction] = []
     reports: list[RoundReport] = []
@@ -476,7 +509,7 @@ def improve_with_corrections(
         for rows, summary in collect_corrections(env, current, datasets, origins, config, workers):
             corrections.extend(rows)
             summaries.append(summary)
-        current = retrain_policies(skills, datasets, corrections)
+        current = retrain_policies(skills, datasets, corrections, relabelled)
         counts = Counter(c.skill for c in corrections)
         names = tuple((skills.skills[k].name, counts[k]) for k in sorted(counts))
         reports.append(RoundReport(tuple(summaries), names, time.perf_counter() - t0))

@@ -154,3 +154,29 @@ def test_a_world_speed_slows_closed_loop_cells_only_and_names_them(cover_env):
         dataclasses.replace(BASE, world_speed=0.0)
     with pytest.raises(SweepConfigError, match="slow_from"):
         dataclasses.replace(BASE, slow_from="later")
+
+
+def test_corrected_skills_are_cells_of_their_own_and_only_learned_evals_use_them(cover_env):
+    """`--corrections`: the skills cells and the eval cells of learned approaches are
+    named and keyed by the corrections; the oracle's cells and a sweep without
+    corrections keep the keys and settings stored before."""
+    plain = {c.key: c for c in sweep_cells(BASE, {"cover": cover_env})}
+    corrected = dataclasses.replace(BASE, corrections="moderate")
+    cells = sweep_cells(corrected, {"cover": cover_env})
+    (skills,) = [c for c in cells if c.kind == "skills"]
+    assert skills.key.endswith("-corrmoderatex2-seed0")
+    assert skills.settings["corrections"] == {"worlds": "moderate", "rounds": 2}
+    learned = [c for c in cells if c.kind == EVAL and c.approach == "bpns"]
+    assert learned and all(skills.key in c.deps and "-corrmoderatex2" in c.key for c in learned)
+    others = [c for c in cells if c.kind == EVAL and c.approach != "bpns"]
+    assert others and all(c.key in plain and plain[c.key].settings == c.settings for c in others)
+    assert all("corrections" not in c.settings and "corr" not in c.key for c in plain.values())
+    assert "corrections" not in BASE.to_json()
+    three = dataclasses.replace(corrected, correction_rounds=3)
+    assert any(
+        c.key.endswith("-corrmoderatex3-seed0") for c in sweep_cells(three, {"cover": cover_env})
+    )
+    with pytest.raises(SweepConfigError, match="corrections 'moderat'"):
+        dataclasses.replace(BASE, corrections="moderat")
+    with pytest.raises(SweepConfigError, match="correction_rounds applies"):
+        dataclasses.replace(BASE, correction_rounds=2)

@@ -18,6 +18,7 @@ from bpns.learning.corrections import (
     CorrectionConfig,
     DemoOrigin,
     improve_with_corrections,
+    oracle_labels,
     oracle_step,
     retrain_policies,
     skill_datasets,
@@ -173,3 +174,22 @@ def test_corrections_retrain_the_policies_of_the_skills_they_label():
         assert old.sampler is new.sampler and old.operator == new.operator
     assert lines and lines[0].startswith("corrections round 1:")
     assert len(report.rollouts) == len(origins)
+
+
+def test_relabelling_gives_the_demonstrations_the_oracles_commands():
+    """`relabel`: every segment an oracle skill can do gets the oracle's commands on its
+    own states (in bounds, one per action), and the policies learn those instead."""
+    env, skills, _ = _cover_skills()
+    labels = oracle_labels(env, skills)
+    segments = [seg for segs in skills.segments for seg in segs]
+    assert labels and set(labels) <= {id(seg) for seg in segments}
+    for seg in segments:
+        if id(seg) in labels:
+            got = labels[id(seg)]
+            assert got.shape == seg.actions.shape
+            assert (got >= env.action_low).all() and (got <= env.action_high).all()
+    datasets = skill_datasets(skills)
+    again = retrain_policies(skills, datasets, [], labels)
+    assert any(a.policy is not b.policy for a, b in zip(again.skills, skills.skills, strict=True))
+    with pytest.raises(ValueError, match="relabel needs the oracle"):
+        CorrectionConfig(parse_world(["latency=1"]), expert="demonstrator", relabel=True)
