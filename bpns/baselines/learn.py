@@ -36,9 +36,8 @@ from bpns.baselines.gnn import GNNConfig, GNNTrainingStats
 from bpns.baselines.gnn_bc import GNNPolicy, bc_examples, train_bc_policy
 from bpns.baselines.gnn_meta import GNNMetacontroller, metacontroller_examples, train_metacontroller
 from bpns.baselines.graphs import GraphVocabulary
-from bpns.env.environment import Environment
 from bpns.learning.artifacts.skills_dir import save_skills
-from bpns.learning.given import GivenSkill, given_skills_of
+from bpns.learning.given import GivenSkill
 from bpns.learning.pipeline import LearnedSkills, learn_from_segments
 from bpns.structs import Demonstration, Predicate, Type
 
@@ -221,30 +220,6 @@ def _stats_json(stats: GNNTrainingStats | None) -> dict | None:
 
 def _config_json(config: GNNConfig | None) -> dict | None:
     return None if config is None else dataclasses.asdict(config)
-
-
-def learn_baselines_into(
-    directory: str | os.PathLike,
-    env: Environment,
-    demos: Sequence[Demonstration],
-    skills: LearnedSkills,
-    config: BaselinesConfig | None = None,
-    report: Callable[[str], None] | None = None,
-) -> tuple[tuple[str, float], ...]:
-    """Learn ``env``'s baselines from ``demos`` (and the BPNS ``skills`` learned from
-    them) and save them into the skills ``directory`` already written; returns the
-    seconds each took."""
-    learned = learn_baselines(
-        demos,
-        env.predicates,
-        env.types,
-        skills,
-        config,
-        report=report,
-        given=given_skills_of(env),
-    )
-    save_baselines(learned, directory, env.name)
-    return learned.stage_seconds
 
 
 def saved_baseline_seconds(directory: str | os.PathLike) -> dict[str, float]:
