@@ -178,10 +178,11 @@ def _add_correction_arguments(p: argparse.ArgumentParser) -> None:
         "(oracle, the default) or its scripted demonstrator",
     )
     p.add_argument(
-        "--correction-relabel",
+        "--keep-demonstrator-labels",
         action="store_true",
-        help="with --corrections: the oracle labels the demonstrations' own states too, so "
-        "that a segment's labels come from one expert",
+        help="with --corrections by the oracle: the demonstrations keep the demonstrator's "
+        "commands as labels, so the policies learn from two experts that disagree "
+        "(default: the oracle labels the demonstrations' states too)",
     )
 
 
@@ -249,7 +250,7 @@ def correction_config_from(args: argparse.Namespace, env: Environment) -> Correc
     flags = {
         "--correction-rounds": args.correction_rounds,
         "--correction-expert": args.correction_expert,
-        "--correction-relabel": args.correction_relabel or None,
+        "--keep-demonstrator-labels": args.keep_demonstrator_labels or None,
     }
     if args.corrections is None:
         for flag, value in flags.items():
@@ -257,8 +258,8 @@ def correction_config_from(args: argparse.Namespace, env: Environment) -> Correc
                 raise UserError(f"{flag} applies to corrections: add --corrections")
         return None
     expert = args.correction_expert or "oracle"
-    if args.correction_relabel and expert != "oracle":
-        raise UserError("--correction-relabel needs the oracle as --correction-expert")
+    if args.keep_demonstrator_labels and expert != "oracle":
+        raise UserError("--keep-demonstrator-labels applies to corrections by the oracle")
     worlds = check_correctable(env, args.corrections, "--corrections", expert)
     try:
         task_origins(args.demos)
@@ -269,7 +270,7 @@ def correction_config_from(args: argparse.Namespace, env: Environment) -> Correc
         rounds=args.correction_rounds or 2,
         expert=expert,
         seed=args.seed,
-        relabel=args.correction_relabel,
+        relabel=False if args.keep_demonstrator_labels else None,
     )
 
 

@@ -70,7 +70,8 @@ class CorrectionConfig:
     this in the world (as ``ExecutionConfig.horizon_scale``). ``seed``: the mixing.
     ``relabel``: the demonstrations' own states are labelled by the oracle too, so that
     every label of a segment it can do comes from one expert (its commands differ from
-    the demonstrator's on the demonstrator's own states)."""
+    the demonstrator's on the demonstrator's own states; measured better, docs/WORLDS.md);
+    None: so with the oracle as the expert (:attr:`relabels`)."""
 
     worlds: WorldDistribution
     rounds: int = 1
@@ -78,7 +79,7 @@ class CorrectionConfig:
     expert_mix: float = 0.0
     horizon_scale: float = 2.0
     seed: int = 0
-    relabel: bool = False
+    relabel: bool | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.rounds, int) or self.rounds < 1:
@@ -91,6 +92,11 @@ class CorrectionConfig:
             raise ValueError(f"horizon_scale must be finite and > 0, got {self.horizon_scale}")
         if self.relabel and self.expert != "oracle":
             raise ValueError("relabel needs the oracle as the expert")
+
+    @property
+    def relabels(self) -> bool:
+        """Whether the oracle labels the demonstrations' own states too."""
+        return self.expert == "oracle" if self.relabel is None else self.relabel
 
     @property
     def rollout_worlds(self) -> WorldDistribution:
@@ -107,7 +113,7 @@ class CorrectionConfig:
             "expert_mix": self.expert_mix,
             "horizon_scale": self.horizon_scale,
             "seed": self.seed,
-            "relabel": self.relabel,
+            "relabel": self.relabels,
         }
 
 
@@ -498,7 +504,7 @@ def improve_with_corrections(
     current skills, then every policy retrained on its data and all corrections so far
     with the seeds learning drew."""
     datasets = skill_datasets(skills)
-    relabelled = oracle_labels(env, skills) if config.relabel else None
+    relabelled = oracle_labels(env, skills) if config.relabels else None
     say = report or (lambda message: None)
     corrections: list[Correction] = []
     reports: list[RoundReport] = []

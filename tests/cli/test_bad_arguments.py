@@ -74,11 +74,11 @@ PROBES = [
     ((*EVAL, "--world-speed", "0.5", "--env", "stack"), "declares no motion_dims"),
     (("experiment", "--env", "stack", "--world-speed", "0.5"), "declares no motion_dims"),
     (("learn", "{d}", "--out", "{w}/sk", "--correction-rounds", "2"), "add --corrections"),
-    (("learn", "{d}", "--out", "{w}/sk", "--correction-relabel"), "add --corrections"),
+    (("learn", "{d}", "--out", "{w}/sk", "--keep-demonstrator-labels"), "add --corrections"),
     (
-        ("learn", "{d}", "--out", "{w}/sk", "--corrections", "moderate", "--correction-relabel")
-        + ("--correction-expert", "demonstrator"),
-        "needs the oracle",
+        ("learn", "{d}", "--out", "{w}/sk", "--corrections", "moderate")
+        + ("--keep-demonstrator-labels", "--correction-expert", "demonstrator"),
+        "applies to corrections by the oracle",
     ),
     (("learn", "{d}", "--out", "{w}/sk", "--corrections", "mass_scale=-1"), "--corrections: "),
     (("learn", "{d}", "--out", "{w}/sk", "--corrections", "moderat"), "--corrections: "),

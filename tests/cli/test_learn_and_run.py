@@ -191,6 +191,7 @@ def test_learn_with_corrections_retrains_policies_and_records_how(run_dir, tmp_p
     assert "corrections round 1: " in out and " rollouts completed every segment" in out
     record = json.loads((corrected / "corrections.json").read_text())
     assert record["worlds"] == "latency=1" and record["expert"] == "oracle"
+    assert record["relabel"] is True  # the oracle labels the demonstrations' states too
     (only,) = record["per_round"]
     assert only["rollouts"] == 4 and sum(only["corrections"].values()) > 0
     index = {p.name: json.loads((p / "skills.json").read_text()) for p in (plain, corrected)}
@@ -205,7 +206,7 @@ def test_learn_with_corrections_retrains_policies_and_records_how(run_dir, tmp_p
     entries = index["plain"]["skills"]
     assert all(same(e["sampler"]) for e in entries)
     changed = [e["name"] for e in entries if not same(e["policy"])]
-    assert sorted(changed) == sorted(n for n, k in only["corrections"].items() if k > 0)
+    assert changed and set(n for n, k in only["corrections"].items() if k > 0) <= set(changed)
     assert main(["skills", "show", str(corrected)]) == 0
     assert "policies retrained on " in capsys.readouterr().out
     assert not (plain / "corrections.json").exists()

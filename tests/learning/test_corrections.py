@@ -162,7 +162,7 @@ def test_with_the_oracle_acting_every_rollout_completes_its_demonstration():
 
 def test_corrections_retrain_the_policies_of_the_skills_they_label():
     env, skills, origins = _cover_skills()
-    config = CorrectionConfig(parse_world(["latency=1"]), rounds=1)
+    config = CorrectionConfig(parse_world(["latency=1"]), rounds=1, relabel=False)
     lines: list[str] = []
     improved, (report,) = improve_with_corrections(
         env, skills, origins, config, report=lines.append
@@ -191,5 +191,10 @@ def test_relabelling_gives_the_demonstrations_the_oracles_commands():
     datasets = skill_datasets(skills)
     again = retrain_policies(skills, datasets, [], labels)
     assert any(a.policy is not b.policy for a, b in zip(again.skills, skills.skills, strict=True))
+    worlds = parse_world(["latency=1"])
     with pytest.raises(ValueError, match="relabel needs the oracle"):
-        CorrectionConfig(parse_world(["latency=1"]), expert="demonstrator", relabel=True)
+        CorrectionConfig(worlds, expert="demonstrator", relabel=True)
+    # by default the oracle relabels; the demonstrator, which labelled them, does not
+    assert CorrectionConfig(worlds).relabels and CorrectionConfig(worlds).to_json()["relabel"]
+    assert not CorrectionConfig(worlds, expert="demonstrator").relabels
+    assert not CorrectionConfig(worlds, relabel=False).relabels
