@@ -264,7 +264,11 @@ def robustness_sections() -> list[str]:
             "before c0e14b3. None of them meets issue 37's targets yet. Slowing the arm "
             "once the world leaves the model's prediction (`--world-speed 0.8 --slow-from "
             "deviation`, off by default) is measured beside full speed on fresh seeds in "
-            "docs/WORLDS.md, its tables in docs/experiments/worlds/*_speed/.\n",
+            "docs/WORLDS.md, its tables in docs/experiments/worlds/*_speed/. Skills "
+            "retrained on the oracle's corrections in perturbed worlds (`bpns learn "
+            "--corrections moderate`, DAgger) are measured beside plain skills on fresh "
+            "seeds in docs/WORLDS.md, \"Corrections from the oracle\" (made by "
+            "scripts/corrections_table.py).\n",
         )
     return out
 
