@@ -267,7 +267,7 @@ def robustness_sections() -> list[str]:
             "docs/WORLDS.md, its tables in docs/experiments/worlds/*_speed/. Skills "
             "retrained on the oracle's corrections in perturbed worlds (`bpns learn "
             "--corrections moderate`, DAgger) are measured beside plain skills on fresh "
-            "seeds in docs/WORLDS.md, \"Corrections from the oracle\" (made by "
+            'seeds in docs/WORLDS.md, "Corrections from the oracle" (made by '
             "scripts/corrections_table.py).\n",
         )
     return out
