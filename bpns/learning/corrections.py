@@ -248,7 +248,7 @@ def oracle_step(
     return OracleStep(index, binding, segment.states[-1].vec(binding))
 
 
-def planned_steps(
+def rollout_steps(
     skills: LearnedSkills,
     datasets: Sequence[SkillDataset],
     oracle: Sequence[Skill] | None,
@@ -331,6 +331,7 @@ class RolloutJob:
 
 
 _ENVIRONMENTS: dict[str, Environment] = {}
+_ORACLES: dict[str, tuple[Skill, ...]] = {}  # per process, by environment name
 
 
 def run_rollout(
@@ -349,8 +350,8 @@ def run_rollout(
     oracle: tuple[Skill, ...] = ()
     if config.expert == "demonstrator":
         demonstrator = env.demonstrator(task, np.random.default_rng([origin.seed, origin.index]))
-    else:
-        oracle = hand_written(env)
+    else:  # made once per process: every rollout asks the same hand-written skills
+        oracle = _ORACLES.get(env.name) or _ORACLES.setdefault(env.name, hand_written(env))
     rng = np.random.default_rng([config.seed, origin.seed, origin.index])
     executor = SkillExecutor(world, task, RolloutConfig(horizon_scale=config.horizon_scale))
     out: list[Correction] = []
@@ -400,17 +401,15 @@ def hand_written(env: Environment) -> tuple[Skill, ...]:
 def collect_corrections(
     env: Environment,
     skills: LearnedSkills,
-    datasets: Sequence[SkillDataset],
+    steps: Sequence[tuple[PlannedStep, ...]],
     origins: Sequence[DemoOrigin],
     config: CorrectionConfig,
     workers: int = 1,
 ) -> Iterator[tuple[list[Correction], RolloutSummary]]:
-    """One rollout per demonstration the skills were learned from (``origins`` in the
-    same order), in ``workers`` processes, yielded in order."""
-    if len(origins) != len(skills.segments):
+    """One rollout per demonstration the skills were learned from (``origins`` and its
+    :func:`rollout_steps` in the same order), in ``workers`` processes, yielded in order."""
+    if not len(origins) == len(steps) == len(skills.segments):
         raise ValueError(f"{len(origins)} task origins for {len(skills.segments)} demonstrations")
-    oracle = hand_written(env) if config.expert == "oracle" else None
-    steps = planned_steps(skills, datasets, oracle)
     jobs = (
         RolloutJob(env.name, skills.skills, skills.predicates, origin, s, config)
         for origin, s in zip(origins, steps, strict=True)
@@ -422,20 +421,23 @@ def collect_corrections(
         yield from bounded_map(pool, run_rollout, jobs, in_flight=4 * workers)
 
 
-def oracle_labels(env: Environment, skills: LearnedSkills) -> dict[int, np.ndarray]:
+def oracle_labels(
+    env: Environment,
+    skills: LearnedSkills,
+    steps: Sequence[tuple[PlannedStep, ...]],
+    oracle: Sequence[Skill],
+) -> dict[int, np.ndarray]:
     """``id(segment)`` -> the oracle's command on each of its states (checked and
     clipped as the demonstrator's were), for every segment of the skills'
-    demonstrations that an oracle skill can do (:func:`oracle_step`)."""
-    oracle = hand_written(env)
+    demonstrations whose step has an oracle (:func:`rollout_steps`)."""
     out: dict[int, np.ndarray] = {}
-    for segments in skills.segments:
-        for seg in segments:
-            step = oracle_step(oracle, seg, seg.states[0].objects)
-            if step is None:
+    for segments, planned in zip(skills.segments, steps, strict=True):
+        for seg, step in zip(segments, planned, strict=True):
+            if step.oracle is None:
                 continue
-            policy = oracle[step.skill].policy
+            policy, where = oracle[step.oracle.skill].policy, step.oracle
             commands = [
-                env.check_action(policy(s, step.objects, step.subgoal)) for s in seg.states[:-1]
+                env.check_action(policy(s, where.objects, where.subgoal)) for s in seg.states[:-1]
             ]
             out[id(seg)] = np.asarray(commands, np.float64).reshape(seg.actions.shape)
     return out
@@ -504,7 +506,11 @@ def improve_with_corrections(
     current skills, then every policy retrained on its data and all corrections so far
     with the seeds learning drew."""
     datasets = skill_datasets(skills)
-    relabelled = oracle_labels(env, skills) if config.relabels else None
+    oracle = hand_written(env) if config.expert == "oracle" else None
+    steps = rollout_steps(skills, datasets, oracle)  # the same every round
+    relabelled = None
+    if config.relabels and oracle is not None:
+        relabelled = oracle_labels(env, skills, steps, oracle)
     say = report or (lambda message: None)
     corrections: list[Correction] = []
     reports: list[RoundReport] = []
@@ -512,7 +518,7 @@ def improve_with_corrections(
     for number in range(1, config.rounds + 1):
         t0 = time.perf_counter()
         summaries = []
-        for rows, summary in collect_corrections(env, current, datasets, origins, config, workers):
+        for rows, summary in collect_corrections(env, current, steps, origins, config, workers):
             corrections.extend(rows)
             summaries.append(summary)
         current = retrain_policies(skills, datasets, corrections, relabelled)
