@@ -17,10 +17,12 @@ from bpns.learning.corrections import (
     Correction,
     CorrectionConfig,
     DemoOrigin,
+    hand_written,
     improve_with_corrections,
     oracle_labels,
     oracle_step,
     retrain_policies,
+    rollout_steps,
     skill_datasets,
 )
 from bpns.learning.pipeline import learn_skills
@@ -180,7 +182,10 @@ def test_relabelling_gives_the_demonstrations_the_oracles_commands():
     """`relabel`: every segment an oracle skill can do gets the oracle's commands on its
     own states (in bounds, one per action), and the policies learn those instead."""
     env, skills, _ = _cover_skills()
-    labels = oracle_labels(env, skills)
+    oracle = hand_written(env)
+    labels = oracle_labels(
+        env, skills, rollout_steps(skills, skill_datasets(skills), oracle), oracle
+    )
     segments = [seg for segs in skills.segments for seg in segs]
     assert labels and set(labels) <= {id(seg) for seg in segments}
     for seg in segments:
