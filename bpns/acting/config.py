@@ -27,6 +27,12 @@ class ExecutionConfig:
                       prediction by more than this (feature units: metres, radians), the
                       rest of the plan is refined again from the world's state, so later
                       subgoals fit where things really are; None: only on a divergence.
+    check_ahead:      at such a boundary, how many steps of the rest are simulated again
+                      in the model from the world's state (their subgoals kept when they
+                      still reach their expected atoms); the later steps keep the old
+                      prediction until their own boundary checks them. None: the whole
+                      rest, and it must still reach the goal. Checking the whole rest at
+                      every boundary costs a plan of n steps about n^2 / 2 step rollouts.
     watch_atoms:      end a skill the moment an atom the rest of the plan needs (and the
                       model's rollout kept) stops holding for the environment's
                       ``contact_settle_steps``, instead of at its horizon.
@@ -54,6 +60,7 @@ class ExecutionConfig:
     closed_loop: bool = True
     max_replans: int = 10
     rerefine_atol: float | None = 0.01
+    check_ahead: int | None = None
     watch_atoms: bool = True
     horizon_scale: float = 2.0
     world_speed: float = 1.0
@@ -69,7 +76,11 @@ class ExecutionConfig:
         atol = self.rerefine_atol
         if atol is not None and not (0.0 < atol < math.inf):
             raise ExecutionConfigError(f"rerefine_atol must be finite and > 0, got {atol}")
-
+        ahead = self.check_ahead
+        if ahead is not None and (isinstance(ahead, bool) or not isinstance(ahead, int)):
+            raise ExecutionConfigError(f"check_ahead must be a whole number, got {ahead!r}")
+        if ahead is not None and ahead < 1:
+            raise ExecutionConfigError(f"check_ahead must be >= 1 or None, got {ahead}")
         if not (1.0 <= self.horizon_scale < math.inf):
             raise ExecutionConfigError(
                 f"horizon_scale must be finite and >= 1, got {self.horizon_scale}"

@@ -203,13 +203,24 @@ class ClosedLoopPlanner:
         the world's state: one rollout per step, no sampling. The cheap repair of a world
         that deviated a little (a Coffee task re-refined at every boundary spent its 60 s
         on fresh samples); None when a step no longer reaches its expected atoms or the
-        goal is missed, and the rest is refined again from scratch. The task's deadline
+        goal is missed, and the rest is refined again from scratch. Once the simulation
+        rejoins the old prediction (a step starts within ``rerefine_atol`` of where the
+        old plan expected it: the test that calls this at all) the old plan's remaining
+        segments stand as they are: checking them again at every boundary cost each task
+        the square of its plan length in rollouts. So do they beyond
+        ``execution.check_ahead`` steps (each is checked at its own boundary). The task's deadline
         passing meanwhile is its timeout (:class:`ExecutionTimeout`, as in the world)."""
         task = self._model_task(world)
         executor = SkillExecutor(self.model, task, RolloutConfig.of(self.config), deadline)
         state, used, out = task.init, 0, []
         try:
-            for step in rest:
+            ahead = self.execution.check_ahead
+            for k, step in enumerate(rest):
+                if k > 0 and (
+                    (ahead is not None and k >= ahead) or not self._deviated(state, step.states[0])
+                ):
+                    out.extend(rest[k:])  # checked enough, or rejoined the prediction
+                    return out
                 done = executor.execute(
                     step.skill, step.op.objects, step.subgoal, state, step.test, used
                 )

@@ -10,6 +10,7 @@ stays where the failed skill left it.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 
 import numpy as np
@@ -46,6 +47,9 @@ class WorldRun:
         self.executions: list[tuple] = []  # (ground operator, subgoal, actions, outcome)
         self.events: list[Event] = []
         self.world_steps = 0  # control steps simulated in the world (reused ones excluded)
+        # wall-clock seconds spent simulating them: on a robot the world's own time, not
+        # the agent's (what an evaluation reports apart as "agent time")
+        self.world_seconds = 0.0
 
     @property
     def used(self) -> int:
@@ -70,10 +74,13 @@ class WorldRun:
     ) -> FailureReason | None:
         """Run ``skill`` towards ``subgoal`` until ``test`` holds; None on success, else
         why it failed. Whatever it executed stays executed (the world moved)."""
-        before = self.executor.sim_steps
-        out = self.executor.execute(
-            skill, op.objects, subgoal, self.state, test, self.used, keep, self.keep_for
-        )
+        before, t0 = self.executor.sim_steps, time.perf_counter()
+        try:
+            out = self.executor.execute(
+                skill, op.objects, subgoal, self.state, test, self.used, keep, self.keep_for
+            )
+        finally:
+            self.world_seconds += time.perf_counter() - t0
         self.world_steps += self.executor.sim_steps - before
         if isinstance(out, Executed):
             self._advance(op, subgoal, out.actions, out.states, REACHED)
@@ -107,10 +114,12 @@ class WorldRun:
 
     def replay(self, actions: np.ndarray) -> None:
         """Apply ``actions`` one after the other, whatever happens (open loop)."""
+        t0 = time.perf_counter()
         for action in actions:
             self.state = self.env.simulate(self.state, action)
             self.actions.append(np.asarray(action, dtype=np.float64))
             self.world_steps += 1
+        self.world_seconds += time.perf_counter() - t0
 
     def _advance(self, op, subgoal, actions, states, outcome: str) -> None:
         self.executions.append((op, subgoal, list(actions), outcome))

@@ -18,6 +18,7 @@ from __future__ import annotations
 import abc
 import dataclasses
 import enum
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -68,6 +69,10 @@ class Solution:
     # divergences repaired, and boundaries where the plan's rest was refined again
     replans: int = 0
     rerefinements: int = 0
+    # of the solving time, the wall-clock seconds spent simulating the world (not the
+    # model): a robot's world runs in real time on its own; 0 when nothing was simulated
+    # apart from planning, or the approach does not tell them apart
+    world_seconds: float = 0.0
 
 
 def failure(reason: FailureReason, action_dim: int, **counts: int) -> Solution:
@@ -119,9 +124,10 @@ def open_loop(
     same_physics = model is world or (task.init.sim is not None and init is task.init)
     if not solution.success or same_physics:
         return solution
-    state = task.init
+    state, t0 = task.init, time.perf_counter()
     for action in solution.actions:
         state = world.simulate(state, action)
+    solution = dataclasses.replace(solution, world_seconds=time.perf_counter() - t0)
     if task.goal_holds(abstract(state, world.goal_predicates)):
         return solution
     rollout = solution.rollout or Rollout(solution.actions)

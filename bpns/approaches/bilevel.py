@@ -100,6 +100,7 @@ def closed_loop_solution(out: ClosedLoopResult) -> Solution:
         rollout=rollout,
         replans=s.replans,
         rerefinements=s.rerefinements,
+        world_seconds=run.world_seconds,
     )
 
 

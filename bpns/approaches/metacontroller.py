@@ -158,7 +158,13 @@ class Metacontroller(Approach):
             executed = {"executed": [str(e[0]) for e in run.executions], "failed_step": step}
             tried = run.executions if attempt is None else [*run.executions, attempt]
             rollout = rollout_of(tried, self.action_dim, run.events)
-            return dataclasses.replace(out, explanation=executed, rollout=rollout, replans=replans)
+            return dataclasses.replace(
+                out,
+                explanation=executed,
+                rollout=rollout,
+                replans=replans,
+                world_seconds=run.world_seconds,
+            )
 
         try:
             while not run.goal_holds():
@@ -205,6 +211,7 @@ class Metacontroller(Approach):
             sim_steps=sim,
             rollout=run.rollout(),
             replans=replans,
+            world_seconds=run.world_seconds,
         )
 
 

@@ -131,6 +131,11 @@ def tolerance_or_off(text: str) -> float | str:
     return text if text == "off" else nonnegative_float(text)
 
 
+def steps_or_all(text: str) -> int | None:
+    """A whole number >= 1, or ``all`` (None: no limit)."""
+    return None if text == "all" else positive(text)
+
+
 def cost_or_off(text: str) -> float | str:
     return text if text == "off" else positive_float(text)
 

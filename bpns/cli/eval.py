@@ -28,6 +28,7 @@ from bpns.cli.common import (
     positive_float,
     positive_or_off,
     print_lines,
+    steps_or_all,
     task_progress,
     tolerance_or_off,
 )
@@ -262,6 +263,15 @@ def add_world_arguments(p: argparse.ArgumentParser) -> None:
         "(default: %(default)s)",
     )
     p.add_argument(
+        "--check-ahead",
+        type=steps_or_all,
+        default=ExecutionConfig().check_ahead,
+        metavar="N|all",
+        help="closed loop: at such a boundary, simulate this many steps of the rest again "
+        "in the model (later ones are checked at their own boundaries), or all of them "
+        "(default: all)",
+    )
+    p.add_argument(
         "--horizon-scale",
         type=float,
         default=ExecutionConfig().horizon_scale,
@@ -306,6 +316,7 @@ def world_settings(
         args.execution,
         max_replans=args.max_replans,
         rerefine_atol=atol,
+        check_ahead=args.check_ahead,
         horizon_scale=scale,
         world_speed=args.world_speed,
         slow_from=args.slow_from,

@@ -15,7 +15,7 @@ from bpns.acting.config import ExecutionConfig, ExecutionConfigError
 from bpns.acting.monitor import kept_atoms, necessary_atoms, repair_point
 from bpns.acting.replanning import ClosedLoopPlanner, ClosedLoopStats, world_run
 from bpns.approaches.bilevel import BilevelPlanning
-from bpns.evaluation.evaluate import plan_reaches_goal
+from bpns.evaluation.evaluate import plan_reaches_goal, solve_task
 from bpns.execution.executor import ExecutionTimeout, NotSlowableError, RolloutConfig
 from bpns.execution.failures import FailureReason
 from bpns.planning.config import PlanningConfig
@@ -122,6 +122,37 @@ def test_a_world_that_deviates_a_little_keeps_the_plans_subgoals_after_checking_
     assert plan_reaches_goal(Overshoot(), task, solution.actions)
 
 
+def test_checking_one_step_ahead_simulates_less_and_still_solves_the_task():
+    # each boundary deviates; checking the whole rest simulates it again every time,
+    # checking one step leaves the later ones to their own boundaries
+    model, task = toy.ToyStickButton(), toy.make_task([2.0, 3.0, 4.0])
+    planner = BilevelPlanning(model, toy.skills(), CONFIG)
+
+    def solve(execution: ExecutionConfig):
+        return planner.solve_in_world(
+            task, model, Overshoot(), np.random.default_rng(0), 20.0, execution
+        )
+
+    whole, one = solve(ExecutionConfig()), solve(ExecutionConfig(check_ahead=1))
+    assert whole.success and one.success and one.replans == 0
+    assert len(one.rollout.steps) == len(whole.rollout.steps) == 3
+    assert one.sim_steps < whole.sim_steps
+    assert plan_reaches_goal(Overshoot(), task, one.actions)
+
+
+def test_the_worlds_simulation_time_is_told_apart_from_the_agents():
+    model, task = toy.ToyStickButton(), toy.make_task([3.0, 6.0])
+    planner = BilevelPlanning(model, toy.skills(), CONFIG)
+    rng = np.random.default_rng(0)
+    outcome = solve_task(planner, task, 0, model, 20.0, rng, world=Overshoot())
+    assert outcome.solved and 0.0 < outcome.world_seconds < outcome.seconds
+    assert outcome.agent_seconds == outcome.seconds - outcome.world_seconds
+    assert outcome.to_json()["world_seconds"] == outcome.world_seconds
+    # planning alone, in the model: nothing is the world's
+    planned = solve_task(planner, task, 0, model, 20.0, rng)
+    assert planned.solved and planned.world_seconds == 0.0
+
+
 def test_a_rest_of_the_plan_checked_after_the_deadline_is_the_tasks_timeout():
     # the deadline passed at a boundary: refining the rest is the task's timeout, not a
     # planning config with a timeout of 0 (which the config refuses)
@@ -213,6 +244,9 @@ def test_necessary_atoms_regress_the_goal_through_the_plan():
         {"max_replans": -1},
         {"max_replans": 1.5},
         {"rerefine_atol": 0.0},
+        {"check_ahead": 0},
+        {"check_ahead": 1.5},
+        {"check_ahead": True},
         {"horizon_scale": 0.5},
         {"horizon_scale": float("inf")},
         {"world_speed": 0.0},

@@ -180,3 +180,23 @@ def test_corrected_skills_are_cells_of_their_own_and_only_learned_evals_use_them
         dataclasses.replace(BASE, corrections="moderat")
     with pytest.raises(SweepConfigError, match="correction_rounds applies"):
         dataclasses.replace(BASE, correction_rounds=2)
+
+
+def test_the_world_table_compares_the_agents_time_without_the_worlds_simulation():
+    records = [
+        _world_record("oracle", None, "nominal", "closed-loop", 2, tasks=2),
+        _world_record("oracle", None, "moderate", "closed-loop", 2, tasks=2),
+    ]
+    # nominal: 1 s, nothing simulated in the world; moderate: 4 s of which the world 2.5
+    for t in records[0]["result"]["tasks"]:
+        t.update(seconds=1.0, world_seconds=0.0)
+    for t in records[1]["result"]["tasks"]:
+        t.update(seconds=4.0, world_seconds=2.5)
+    records[1]["result"]["median_seconds"] = 4.0
+    table = markdown_table(aggregate(records))
+    assert "| Time vs nominal | Agent time vs nominal |" in table
+    assert "| 4.00 ± 0.00 | 4.00x | 1.50x |" in table
+    # cells stored before the world's time was recorded: no agent time, not a wrong one
+    for t in records[1]["result"]["tasks"]:
+        del t["world_seconds"]
+    assert "| 4.00x | – |" in markdown_table(aggregate(records))
