@@ -155,6 +155,7 @@ def _evaluate(job: CellJob) -> dict[str, Any]:
             "index": o.index,
             "solved": o.solved,
             "seconds": o.seconds,
+            "world_seconds": o.world_seconds,  # of seconds, simulating the world
             "reason": o.reason,
             "nodes_created": o.nodes_created,
             "samples": o.samples,
