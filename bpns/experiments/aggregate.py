@@ -125,6 +125,8 @@ class Row:
     world: str | None = None  # the swept world (None: not swept)
     execution: str | None = None  # closed-loop / open-loop (None: not swept)
     axis_of: str = "perturbation"  # what the axis sweeps: "perturbation" or "objects"
+    # skills retrained on corrections (``bpns experiment --corrections``): "moderate x2"
+    corrections: str | None = None
 
     @property
     def pooled(self) -> tuple[int, int]:
@@ -141,7 +143,8 @@ class Row:
 
     @property
     def label(self) -> str:
-        return approach_info.label(self.approach)
+        label = approach_info.label(self.approach)
+        return label if self.corrections is None else f"{label} + corrections ({self.corrections})"
 
     @property
     def solved_percent(self) -> Stat:
@@ -181,6 +184,7 @@ class Row:
             "approach": self.approach,
             "label": self.label,
             "demos": self.demos,
+            **({} if self.corrections is None else {"corrections": self.corrections}),
             **({} if self.axis is None else {self.axis_of: {self.axis: self.level}}),
             **({} if self.world is None else {"world": self.world}),
             **({} if self.execution is None else {"execution": self.execution}),
@@ -221,7 +225,9 @@ def aggregate(eval_records: Iterable[dict[str, Any]]) -> list[Row]:
             ("exec", execution),
         ):
             order[name].setdefault(value, len(order[name]))
-        key = (s["env"], s["approach"], s["demo_count"], level, world, execution)
+        fix = s.get("corrections")
+        corrections = None if fix is None else f"{fix['worlds']} x{fix['rounds']}"
+        key = (s["env"], s["approach"], s["demo_count"], level, world, execution, corrections)
         axes[key] = (axis, axis_of)
         groups.setdefault(key, []).append(SeedResult.from_record(record))
     keys = sorted(
@@ -233,12 +239,14 @@ def aggregate(eval_records: Iterable[dict[str, Any]]) -> list[Row]:
             0.0 if k[3] is None else k[3],
             order["world"][k[4]],
             order["exec"][k[5]],
+            k[6] or "",
         ),
     )
     return [
         Row(
             *(k[0], k[1], k[2], tuple(sorted(groups[k], key=_seed)), k[3], axes[k][0], k[4], k[5]),
             axis_of=axes[k][1],
+            corrections=k[6],
         )
         for k in keys
     ]
@@ -309,16 +317,20 @@ def robustness_table(rows: Sequence[Row]) -> str:
     nominal_agent: dict[tuple, float | None] = {}
     for r in rows:
         if r.world in (None, "nominal") and r.axis is None:
-            nominal[(r.env, r.approach, r.demos, r.execution)] = r.median_seconds.mean
-            nominal_agent[(r.env, r.approach, r.demos, r.execution)] = r.median_agent_seconds.mean
+            nominal[(r.env, r.approach, r.demos, r.execution, r.corrections)] = (
+                r.median_seconds.mean
+            )
+            nominal_agent[(r.env, r.approach, r.demos, r.execution, r.corrections)] = (
+                r.median_agent_seconds.mean
+            )
     lines = [ROBUSTNESS_HEADER]
     for r in rows:
         solved, tasks = r.pooled
         low, high = r.pooled_interval
-        base = nominal.get((r.env, r.approach, r.demos, r.execution))
+        base = nominal.get((r.env, r.approach, r.demos, r.execution, r.corrections))
         median = r.median_seconds.mean
         ratio = "–" if not base or median is None else f"{median / base:.2f}x"
-        base_agent = nominal_agent.get((r.env, r.approach, r.demos, r.execution))
+        base_agent = nominal_agent.get((r.env, r.approach, r.demos, r.execution, r.corrections))
         agent = r.median_agent_seconds.mean
         agent_ratio = "–" if not base_agent or agent is None else f"{agent / base_agent:.2f}x"
         world = r.world or (f"{r.axis}={r.level:g}" if r.axis is not None else "nominal")

@@ -200,3 +200,13 @@ def test_the_world_table_compares_the_agents_time_without_the_worlds_simulation(
     for t in records[1]["result"]["tasks"]:
         del t["world_seconds"]
     assert "| 4.00x | – |" in markdown_table(aggregate(records))
+
+
+def test_rows_of_corrected_skills_are_their_own_and_say_so():
+    plain = _world_record("bpns", 10, "moderate", "closed-loop", 1, tasks=2)
+    fixed = _world_record("bpns", 10, "moderate", "closed-loop", 2, tasks=2)
+    fixed["settings"]["corrections"] = {"worlds": "moderate", "rounds": 2}
+    rows = aggregate([plain, fixed])
+    assert [r.label for r in rows] == ["BPNS", "BPNS + corrections (moderate x2)"]
+    assert [r.pooled for r in rows] == [(1, 2), (2, 2)]
+    assert "| cover | BPNS + corrections (moderate x2) | 10 | moderate |" in markdown_table(rows)
