@@ -75,6 +75,9 @@ class World:
         self.queue = slice(base_userdata, base_userdata + queue_size)  # in userdata
         self.controller = EndEffectorController(ik_model(robot), controller_config)
         self.controller.bind(self.model, prefix=robot.prefix)
+        # the masses the scene declares, whatever the perturbation makes of them: a domain
+        # whose rules read a mass as a task parameter (Doors' latch) reads these
+        self.declared_body_mass = self.model.body_mass.copy()
         if perturbation.changes_model:
             names = controller_config.arm_actuators
             arm = [self.model.actuator(robot.prefix + a).id for a in names]

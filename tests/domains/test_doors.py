@@ -142,3 +142,20 @@ def test_demonstrator_solves_small_tasks(env, index):
             break
         s = env.simulate(s, demo(s))
     assert task.goal_holds(abstract(s, env.predicates))
+
+
+def test_a_heavier_world_asks_the_same_angle_of_the_latch_and_slides_a_heavier_leaf(env):
+    # the latch's angle is the task's puzzle (the leaf's declared mass); mass_scale is
+    # physics the model does not know, and must not change the puzzle's answer
+    from bpns.env.environment import adopt_state, perturbed
+    from bpns.env.perturbations import Perturbation
+
+    task = env.train_tasks(1, seed=5)[0]
+    heavy = perturbed(env, Perturbation(mass_scale=1.5))
+    state = adopt_state(heavy, task.init)
+    door = task.init.objects_of_type(DOOR)[0]
+    assert state.get(door, "mass") == task.init.get(door, "mass")
+    world, nominal = state.sim.world, task.init.sim.world
+    leaf = world.model.body(f"{door.name}_leaf").id
+    assert world.model.body_mass[leaf] == pytest.approx(1.5 * nominal.model.body_mass[leaf])
+    assert heavy._required(world, 0) == env._required(nominal, 0)

@@ -30,7 +30,8 @@ Rules (final, as simulated):
   good after a control step that ends with the door's handle within 0.04 rad of the
   door's own angle ``tanh(target_rot) * (sin(mass) + cos(friction) * sqrt(mass))``, where
   ``mass`` is the leaf's mass in kg (U(0.1, 1)), ``friction`` the handle hinge's
-  frictionloss / 0.1 N m (U(0, 1)) - both read from the compiled model - and
+  frictionloss / 0.1 N m (U(0, 1)) - both as the scene declares them: a perturbed
+  world's ``mass_scale`` makes the leaf heavier to slide, not the angle another - and
   ``target_rot`` ~ U(0, 1) lives in ``userdata`` (saved state). Handles are a wing on a
   vertical hinge on the wall top 0.52 m beside the doorway's centre, starting at -0.25 rad
   (below every opening angle); the fingers grip the wing and the wrist turns it. The spring
@@ -288,7 +289,9 @@ class DoorsEnv(MujocoEnv):
                 "handle_q": [m.joint(f"door{k}_handle_joint").qposadr[0] for k in range(n)],
                 "leaf_q": [m.joint(f"door{k}_slide").qposadr[0] for k in range(n)],
                 "wing": [m.geom(f"door{k}_wing").id for k in range(n)],
-                "mass": [float(m.body_mass[b]) for b in leaf_bodies],
+                # the leaf's mass as the task declares it: a heavier world makes the
+                # leaf slower to slide, not the latch's angle another one
+                "mass": [float(world.declared_body_mass[b]) for b in leaf_bodies],
                 "friction": [
                     float(m.dof_frictionloss[m.joint(f"door{k}_handle_joint").dofadr[0]])
                     / HANDLE_FRICTION_SCALE
