@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+from pathlib import Path
 
 from bpns.baselines.learn import BaselinesConfig
 from bpns.cli.common import (
@@ -36,7 +37,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     _add_paper_arguments(p)
     _add_operator_arguments(p)
     _add_baseline_arguments(p)
-    _add_correction_arguments(p)
+    add_correction_arguments(p)
     _add_run_arguments(p)
 
 
@@ -155,7 +156,7 @@ def _add_baseline_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _add_correction_arguments(p: argparse.ArgumentParser) -> None:
+def add_correction_arguments(p: argparse.ArgumentParser) -> None:
     """Corrections on the states the learned skills reach in perturbed worlds (DAgger)."""
     p.add_argument(
         "--corrections",
@@ -218,7 +219,7 @@ def run(args: argparse.Namespace) -> int:
         if value is not None and not args.baselines:
             raise UserError(f"{flag} applies to the baselines: add --baselines")
     env = file_env(args.demos, None)
-    corrections = correction_config_from(args, env)
+    corrections = correction_config_from(args, env, args.demos)
     threads = capped_to_cores(args.threads, "--threads")
     workers = usable_cores() if args.workers is None else capped_to_cores(args.workers, "--workers")
     config = learning_config_from(args, env)
@@ -243,10 +244,13 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def correction_config_from(args: argparse.Namespace, env: Environment) -> CorrectionConfig | None:
+def correction_config_from(
+    args: argparse.Namespace, env: Environment, demos: Path | None = None
+) -> CorrectionConfig | None:
     """The corrections ``--corrections`` asks for (None: none), checked before any work:
     the worlds against the environment, the expert against what it declares, and that
-    the demonstrations record their tasks."""
+    the demonstrations ``demos`` record their tasks (None: demonstrations still to be
+    collected by ``bpns demos``' code, which records them)."""
     flags = {
         "--correction-rounds": args.correction_rounds,
         "--correction-expert": args.correction_expert,
@@ -262,7 +266,8 @@ def correction_config_from(args: argparse.Namespace, env: Environment) -> Correc
         raise UserError("--keep-demonstrator-labels applies to corrections by the oracle")
     worlds = check_correctable(env, args.corrections, "--corrections", expert)
     try:
-        task_origins(args.demos)
+        if demos is not None:
+            task_origins(demos)
     except DatasetError as err:
         raise UserError(f"--corrections: {err}") from None
     return CorrectionConfig(

@@ -31,6 +31,7 @@ from bpns.cli.common import (
     stage_reporter,
     task_progress,
 )
+from bpns.cli.learn import add_correction_arguments, correction_config_from
 from bpns.cli.paths import (
     capped_to_cores,
     check_eval_outputs,
@@ -42,12 +43,15 @@ from bpns.cli.paths import (
 )
 from bpns.data.datasets import DatasetError
 from bpns.data.demos import check_replay
-from bpns.env.environment import Environment
+from bpns.env.environment import Environment, perturbed
 from bpns.env.object_counts import PAPER_SET, EvalSet
+from bpns.env.perturbations import PerturbationError
+from bpns.env.worlds import WorldDistribution, parse_world
 from bpns.evaluation.evaluate import EvalReport
 from bpns.evaluation.reporting import solved_line
 from bpns.learning import LearnedSkills, LearningConfig, describe
 from bpns.learning.config import learning_config_for
+from bpns.learning.corrections import CorrectionConfig
 from bpns.planning.config import PlanningConfig, planning_config_for
 from bpns.workflow import (
     CannotLearnError,
@@ -83,6 +87,15 @@ def configure(p: argparse.ArgumentParser) -> None:
         type=positive,
         help="at most this many gradient steps per GNN baseline learned (default 20000)",
     )
+    p.add_argument(
+        "--perturb",
+        nargs="+",
+        metavar="PRESET|NAME=VALUE",
+        help="evaluate the same tasks a second time, each in its own world drawn as "
+        "`bpns eval --perturb` draws them (e.g. moderate), closed loop, the planner's model "
+        "nominal: a second table, beside the nominal one, in --out/eval_perturbed",
+    )
+    add_correction_arguments(p)
     p.add_argument(
         "--overwrite", action="store_true", help="replace the outputs of an earlier run in --out"
     )
@@ -127,6 +140,8 @@ class RunConfig:
     baselines: BaselinesConfig | None  # None: no approach asked needs a baseline
     planning: PlanningConfig  # the approaches' base, with the --timeout
     eval_set: EvalSet = PAPER_SET  # the eval distribution (--eval-set, --objects)
+    worlds: WorldDistribution | None = None  # --perturb: a second evaluation in these
+    corrections: CorrectionConfig | None = None  # --corrections: DAgger after learning
 
     @property
     def names(self) -> list[str]:
@@ -143,6 +158,14 @@ class RunConfig:
     @property
     def video(self) -> Path:
         return self.out / "eval_solved.mp4"
+
+    @property
+    def perturbed_eval(self) -> Path:
+        return self.out / "eval_perturbed"
+
+    @property
+    def perturbed_video(self) -> Path:
+        return self.out / "eval_perturbed_solved.mp4"
 
 
 def parse_run(args: argparse.Namespace) -> RunConfig:
@@ -164,10 +187,23 @@ def parse_run(args: argparse.Namespace) -> RunConfig:
         steps = args.baseline_steps
         base = BaselinesConfig() if steps is None else BaselinesConfig.with_max_steps(steps)
         baselines = base.only(stages)
+    worlds = None
+    if args.perturb is not None:
+        try:
+            worlds = parse_world(args.perturb)
+            perturbed(env, worlds.draw(0))  # an environment without perturbations says so
+        except PerturbationError as err:
+            raise UserError(f"--perturb: {err}") from None
+    # the demonstrations are collected by this run, which records their tasks
+    corrections = correction_config_from(args, env)
     check_output_dir(out, "--out")
     check_output_file(out / "demos.h5", "--out", args.overwrite)
     check_skills_dir(out / "skills", "--out", args.overwrite)
     check_eval_outputs(out / "eval", out / "eval_solved.mp4", names, args.overwrite)
+    if worlds is not None:
+        check_eval_outputs(
+            out / "eval_perturbed", out / "eval_perturbed_solved.mp4", names, args.overwrite
+        )
     return RunConfig(
         env=env,
         entries=tuple(entries),
@@ -181,6 +217,8 @@ def parse_run(args: argparse.Namespace) -> RunConfig:
         baselines=baselines,
         planning=planning,
         eval_set=eval_set,
+        worlds=worlds,
+        corrections=corrections,
     )
 
 
@@ -194,6 +232,9 @@ def run(args: argparse.Namespace) -> int:
         learned = learn(config)
         reports = evaluate(config, learned=learned)
         report(config, reports=reports)
+        if config.worlds is not None:
+            reports += evaluate(config, learned=learned, worlds=config.worlds)
+            report(config, reports=reports[len(config.names) :], perturbed=True)
         if not all(r.num_solved for r in reports):
             return 1
         print(f"done in {time.perf_counter() - t0:.0f} s; everything is in {config.out}/")
@@ -239,6 +280,7 @@ def learn(config: RunConfig) -> LearnedSkills:
             report=stage_reporter(),
             baselines=config.baselines,
             workers=config.workers,
+            corrections=config.corrections,
         )
     except (DatasetError, CannotLearnError) as err:  # as `bpns learn` says it
         raise UserError(str(err)) from None
@@ -247,9 +289,13 @@ def learn(config: RunConfig) -> LearnedSkills:
     return learned_run.learned
 
 
-def evaluate(config: RunConfig, *, learned: LearnedSkills) -> list[EvalReport]:
-    """Evaluate every approach asked on held-out tasks; the reports, in that order."""
-    _step(f"eval: {', '.join(config.names)} on {config.num_tasks} tasks")
+def evaluate(
+    config: RunConfig, *, learned: LearnedSkills, worlds: WorldDistribution | None = None
+) -> list[EvalReport]:
+    """Evaluate every approach asked on held-out tasks, in the nominal world or in
+    ``worlds`` (closed loop, the model nominal); the reports, in that order."""
+    where = "" if worlds is None else f" in {worlds.label()} worlds (closed loop)"
+    _step(f"eval: {', '.join(config.names)} on {config.num_tasks} tasks{where}")
     return evaluate_approaches(
         config.env,
         config.names,
@@ -258,6 +304,7 @@ def evaluate(config: RunConfig, *, learned: LearnedSkills) -> list[EvalReport]:
             task_seed=config.seed,
             workers=config.workers,
             eval_set=config.eval_set,
+            **({} if worlds is None else {"perturbation": worlds}),
         ),
         config.planning,
         skills_dir=config.skills_dir,
@@ -267,11 +314,15 @@ def evaluate(config: RunConfig, *, learned: LearnedSkills) -> list[EvalReport]:
     )
 
 
-def report(config: RunConfig, *, reports: list[EvalReport]) -> None:
-    """The table, the results files and a video of a solved task."""
-    reported = report_evaluation(
-        config.env, reports, config.out / "eval", config.video, config.seed, train=False
+def report(config: RunConfig, *, reports: list[EvalReport], perturbed: bool = False) -> None:
+    """The table, the results files and a video of a solved task (of the perturbed
+    evaluation into its own directory and video)."""
+    out, video = (
+        (config.perturbed_eval, config.perturbed_video)
+        if perturbed
+        else (config.out / "eval", config.video)
     )
+    reported = report_evaluation(config.env, reports, out, video, config.seed, train=False)
     print_lines(reported)
     if reported.no_video_of is not None:
         print(f"no {reported.no_video_of} task was solved: no video", file=sys.stderr)

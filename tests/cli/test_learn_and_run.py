@@ -255,3 +255,24 @@ def test_a_learned_policy_with_nan_weights_fails_its_samples_not_the_planner(run
     failures.pop("nogood", None)  # later skeletons' first step: refuted without sampling
     assert failures == {"policy_nonfinite": result.stats.samples_drawn}
     assert result.stats.sim_steps == 0
+
+
+def test_run_with_perturb_and_corrections_adds_a_perturbed_table_beside_the_nominal_one(
+    tmp_path, capsys
+):
+    out = tmp_path / "r"
+    argv = ["run", "--env", "cover", "--approach", "oracle", "--demos", "3", "--tasks", "2"]
+    argv += ["--workers", "1", "--out", str(out), "--perturb", "moderate"]
+    argv += ["--corrections", "latency=1", "--correction-rounds", "1"]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "in moderate worlds (closed loop)" in printed and "corrections round 1: " in printed
+    assert (out / "skills" / "corrections.json").is_file()
+    (nominal,) = json.loads((out / "eval" / "results.json").read_text())
+    (perturbed,) = json.loads((out / "eval_perturbed" / "results.json").read_text())
+    assert nominal["worlds"] == "nominal" and perturbed["worlds"] == "moderate"
+    assert [t["index"] for t in perturbed["tasks"]] == [t["index"] for t in nominal["tasks"]]
+    assert all(t["world"]["latency"] in (0, 1) for t in perturbed["tasks"])
+    table = (out / "eval_perturbed" / "results.md").read_text()
+    assert table.startswith("World: moderate; model: nominal; execution: closed-loop")
+    assert (out / "eval_perturbed_solved.mp4").is_file()
