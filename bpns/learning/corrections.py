@@ -359,25 +359,21 @@ def run_rollout(
     demonstrator_alive = True
     for step in job.steps:
         skill = None if step.skill is None else job.skills[step.skill]
-        if skill is None or not isinstance(skill.policy, LearnedPolicy):
-            ended = "no skill" if skill is None else "given skill"
-            return out, RolloutSummary(completed, len(job.steps), ended, len(out))
-        labeller = _Labeller(world, step.skill, skill.policy, config.expert_mix, rng, out)
-        if demonstrator is not None and demonstrator_alive:
-            labeller.expert = demonstrator
-        elif step.oracle is not None and oracle:
-            labeller.expert = _OracleCommand(oracle[step.oracle.skill], step.oracle)
+        if skill is None:
+            return out, RolloutSummary(completed, len(job.steps), "no skill", len(out))
+        acting = skill  # a given skill (the environment's own policy) acts as it is
+        if isinstance(skill.policy, LearnedPolicy):
+            labeller = _Labeller(world, step.skill, skill.policy, config.expert_mix, rng, out)
+            if demonstrator is not None and demonstrator_alive:
+                labeller.expert = demonstrator
+            elif step.oracle is not None and oracle:
+                labeller.expert = _OracleCommand(oracle[step.oracle.skill], step.oracle)
+            acting = dataclasses.replace(skill, policy=labeller)
         ground = skill.operator.ground(step.objects)
         test = completion_test(ground, ground.apply(abstract(state, job.predicates)))
-        result = executor.execute(
-            dataclasses.replace(skill, policy=labeller),
-            step.objects,
-            step.subgoal,
-            state,
-            test,
-            used,
-        )
-        demonstrator_alive = demonstrator_alive and labeller.expert is not None
+        result = executor.execute(acting, step.objects, step.subgoal, state, test, used)
+        if acting is not skill:
+            demonstrator_alive = demonstrator_alive and labeller.expert is not None
         if not isinstance(result, Executed):
             summary = RolloutSummary(completed, len(job.steps), result.value, len(out), skill.name)
             return out, summary
@@ -421,26 +417,52 @@ def collect_corrections(
         yield from bounded_map(pool, run_rollout, jobs, in_flight=4 * workers)
 
 
+DemoStates = Callable[[int], Sequence[State]]  # demonstration i's states, with simulator
+
+
 def oracle_labels(
     env: Environment,
     skills: LearnedSkills,
     steps: Sequence[tuple[PlannedStep, ...]],
     oracle: Sequence[Skill],
+    demo_states: DemoStates | None = None,
 ) -> dict[int, np.ndarray]:
     """``id(segment)`` -> the oracle's command on each of its states (checked and
     clipped as the demonstrator's were), for every segment of the skills'
-    demonstrations whose step has an oracle (:func:`rollout_steps`)."""
+    demonstrations whose step has an oracle (:func:`rollout_steps`).
+
+    Learning reads features only; an oracle policy may need the scene itself (Doors'
+    base path planner reads the world's walls). ``demo_states(i)`` gives demonstration
+    i's states with their simulator state: a segment whose states it reproduces
+    feature for feature is labelled on those."""
     out: dict[int, np.ndarray] = {}
-    for segments, planned in zip(skills.segments, steps, strict=True):
+    for i, (segments, planned) in enumerate(zip(skills.segments, steps, strict=True)):
+        full = None if demo_states is None else demo_states(i)
+        offset = 0
         for seg, step in zip(segments, planned, strict=True):
+            states = _with_simulator(seg, full, offset)
+            offset += len(seg.actions)
             if step.oracle is None:
                 continue
             policy, where = oracle[step.oracle.skill].policy, step.oracle
             commands = [
-                env.check_action(policy(s, where.objects, where.subgoal)) for s in seg.states[:-1]
+                env.check_action(policy(s, where.objects, where.subgoal)) for s in states[:-1]
             ]
             out[id(seg)] = np.asarray(commands, np.float64).reshape(seg.actions.shape)
     return out
+
+
+def _with_simulator(seg: Segment, full: Sequence[State] | None, offset: int) -> Sequence[State]:
+    """``seg``'s states as ``full[offset:]`` has them (with simulator state) when those
+    are the same features, else as learning read them."""
+    if full is None:
+        return seg.states
+    mine = full[offset : offset + len(seg.states)]
+    same = len(mine) == len(seg.states) and all(
+        a.data.keys() == b.data.keys() and all(np.array_equal(a.data[o], b.data[o]) for o in a.data)
+        for a, b in zip(mine, seg.states, strict=True)
+    )
+    return mine if same else seg.states
 
 
 def retrain_policies(
@@ -501,16 +523,18 @@ def improve_with_corrections(
     config: CorrectionConfig,
     workers: int = 1,
     report: Callable[[str], None] | None = None,
+    demo_states: DemoStates | None = None,
 ) -> tuple[LearnedSkills, tuple[RoundReport, ...]]:
     """``config.rounds`` rounds of: a correction rollout per demonstration with the
     current skills, then every policy retrained on its data and all corrections so far
-    with the seeds learning drew."""
+    with the seeds learning drew. ``demo_states``: the demonstrations' states with their
+    simulator state, for an oracle that relabels them (:func:`oracle_labels`)."""
     datasets = skill_datasets(skills)
     oracle = hand_written(env) if config.expert == "oracle" else None
     steps = rollout_steps(skills, datasets, oracle)  # the same every round
     relabelled = None
     if config.relabels and oracle is not None:
-        relabelled = oracle_labels(env, skills, steps, oracle)
+        relabelled = oracle_labels(env, skills, steps, oracle, demo_states)
     say = report or (lambda message: None)
     corrections: list[Correction] = []
     reports: list[RoundReport] = []

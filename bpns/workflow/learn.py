@@ -147,8 +147,13 @@ def learn_to_directory(
         raise CannotLearnError(f"cannot learn from {demos_path}: {err}") from None
     rounds: tuple[RoundReport, ...] = ()
     if corrections is not None and origins is not None:
+
+        def demo_states(i: int):  # with simulator state, for an oracle that reads the scene
+            (demo,) = iter_demonstrations(demos_path, env, [i])
+            return demo.states
+
         learned, rounds = improve_with_corrections(
-            env, learned, origins, corrections, workers, report
+            env, learned, origins, corrections, workers, report, demo_states
         )
     learned_baselines = None
     if baselines is not None:  # before saving anything: stopped while they train (the

@@ -26,6 +26,7 @@ from bpns.learning.corrections import (
     skill_datasets,
 )
 from bpns.learning.pipeline import learn_skills
+from bpns.learning.policies import LearnedPolicy
 from bpns.structs import GroundAtom, LiftedAtom, Segment, Skill, State, STRIPSOperator, Variable
 from tests import toy_learning as toy
 
@@ -203,3 +204,60 @@ def test_relabelling_gives_the_demonstrations_the_oracles_commands():
     assert CorrectionConfig(worlds).relabels and CorrectionConfig(worlds).to_json()["relabel"]
     assert not CorrectionConfig(worlds, expert="demonstrator").relabels
     assert not CorrectionConfig(worlds, relabel=False).relabels
+
+
+@functools.cache
+def _doors_skills():
+    """Doors skills learned, as `bpns learn` learns them, from states without their
+    simulator; the demonstrations themselves keep it."""
+    from bpns.data.demos import run_demonstrator
+    from bpns.env.registry import make_environment
+    from bpns.learning.given import given_skills_of
+
+    env = make_environment("doors")
+    origins = [DemoOrigin(7, i) for i in range(3)]
+    demos = [
+        run_demonstrator(env, env.task(o.index, o.seed, True), [o.seed, o.index]) for o in origins
+    ]
+    bare = [dataclasses.replace(d, states=tuple(State(s.data) for s in d.states)) for d in demos]
+    net = toy.MLPConfig(num_steps=100, batch_size=128)
+    config = dataclasses.replace(
+        learning_config_for(env), policy=net, generator=net, classifier=net
+    )
+    torch.set_num_threads(1)
+    given = given_skills_of(env)
+    skills = learn_skills(bare, env.predicates, env.contact_predicates, config, given=given)
+    return env, skills, origins, demos
+
+
+def test_doors_corrections_relabel_on_the_scene_and_go_on_past_given_skills():
+    """Doors' oracle plans the base's path in the scene's walls: it relabels the
+    demonstrations' states with their simulator state (learning read features only),
+    and a rollout goes on past the environment's given skill (moving through a door)."""
+    from bpns.learning.given import given_skills_of
+
+    env, skills, origins, demos = _doors_skills()
+    assert given_skills_of(env), "Doors declares a given skill"
+    oracle = hand_written(env)
+    steps = rollout_steps(skills, skill_datasets(skills), oracle)
+    with pytest.raises(AttributeError):  # the scene is not in a features-only state
+        oracle_labels(env, skills, steps, oracle)
+    labels = oracle_labels(env, skills, steps, oracle, lambda i: demos[i].states)
+    segments = [seg for segs in skills.segments for seg in segs]
+    assert labels and all(
+        labels[id(s)].shape == s.actions.shape for s in segments if id(s) in labels
+    )
+    config = CorrectionConfig(parse_world(["action_noise=0.001"]), rounds=1, expert_mix=1.0)
+    _, (report,) = improve_with_corrections(
+        env, skills, origins, config, demo_states=lambda i: demos[i].states
+    )
+    # a rollout goes on past a given skill's step (before, every rollout ended at one)
+    given = [
+        next(
+            k
+            for k, p in enumerate(plan)
+            if not isinstance(skills.skills[p.skill].policy, LearnedPolicy)
+        )
+        for plan in steps
+    ]
+    assert any(r.completed > g for r, g in zip(report.rollouts, given, strict=True))
