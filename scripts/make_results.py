@@ -268,7 +268,13 @@ def robustness_sections() -> list[str]:
             "retrained on the oracle's corrections in perturbed worlds (`bpns learn "
             "--corrections moderate`, DAgger) are measured beside plain skills on fresh "
             'seeds in docs/WORLDS.md, "Corrections from the oracle" (made by '
-            "scripts/corrections_table.py).\n",
+            "scripts/corrections_table.py) and, for the other domains, in the sections "
+            "below whose command has `--corrections` (their plain rows in "
+            "docs/experiments/worlds/*_corr/plain_results.md). The Doors sections before "
+            "the one with corrections were measured before a perturbed world's mass "
+            "stopped moving the angle its latch opens at (commit fd5058f); sweeps "
+            "measured since give the agent's time apart from the world's (\"Agent time "
+            'vs nominal", docs/WORLDS.md).\n',
         )
     return out
 
