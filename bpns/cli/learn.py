@@ -179,6 +179,13 @@ def add_correction_arguments(p: argparse.ArgumentParser) -> None:
         "(oracle, the default) or its scripted demonstrator",
     )
     p.add_argument(
+        "--keep-last-round",
+        action="store_true",
+        help="with --corrections: keep the last round's policies (default: replay them "
+        "once more and keep whichever policies, the plain ones included, carried the "
+        "most demonstrations through every segment)",
+    )
+    p.add_argument(
         "--keep-demonstrator-labels",
         action="store_true",
         help="with --corrections by the oracle: the demonstrations keep the demonstrator's "
@@ -255,6 +262,7 @@ def correction_config_from(
         "--correction-rounds": args.correction_rounds,
         "--correction-expert": args.correction_expert,
         "--keep-demonstrator-labels": args.keep_demonstrator_labels or None,
+        "--keep-last-round": args.keep_last_round or None,
     }
     if args.corrections is None:
         for flag, value in flags.items():
@@ -276,6 +284,7 @@ def correction_config_from(
         expert=expert,
         seed=args.seed,
         relabel=False if args.keep_demonstrator_labels else None,
+        keep="last" if args.keep_last_round else "best",
     )
 
 

@@ -45,11 +45,15 @@ def corrections_note(directory: Path) -> str | None:
         return None
     try:
         record = json.loads(path.read_text())
-        rounds = record["per_round"]
+        rounds = [r for r in record["per_round"] if r.get("retrained", True)]
         total = sum(int(n) for n in rounds[-1]["corrections"].values()) if rounds else 0
+        kept = [i for i, r in enumerate(record["per_round"]) if r.get("kept")]
+        which = ""
+        if kept:
+            which = f"; kept round {kept[0]}'s policies" if kept[0] else "; kept the plain ones"
         return (
             f"policies retrained on {total} corrections by the {record['expert']} in "
-            f"{record['worlds']} worlds over {len(rounds)} round(s) ({CORRECTIONS_RECORD})"
+            f"{record['worlds']} worlds over {len(rounds)} round(s){which} ({CORRECTIONS_RECORD})"
         )
     except (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError) as err:
         return f"{path}: unreadable record of corrections ({type(err).__name__})"

@@ -75,6 +75,7 @@ PROBES = [
     (("experiment", "--env", "stack", "--world-speed", "0.5"), "declares no motion_dims"),
     (("learn", "{d}", "--out", "{w}/sk", "--correction-rounds", "2"), "add --corrections"),
     (("learn", "{d}", "--out", "{w}/sk", "--keep-demonstrator-labels"), "add --corrections"),
+    (("learn", "{d}", "--out", "{w}/sk", "--keep-last-round"), "add --corrections"),
     (
         ("learn", "{d}", "--out", "{w}/sk", "--corrections", "moderate")
         + ("--keep-demonstrator-labels", "--correction-expert", "demonstrator"),

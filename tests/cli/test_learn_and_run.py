@@ -186,12 +186,14 @@ def test_learn_with_corrections_retrains_policies_and_records_how(run_dir, tmp_p
     plain, corrected = tmp_path / "plain", tmp_path / "corrected"
     assert main(["learn", demos, "--limit", "4", "--out", str(plain)]) == 0
     args = ["learn", demos, "--limit", "4", "--out", str(corrected)]
-    assert main([*args, "--corrections", "latency=1", "--correction-rounds", "1"]) == 0
+    flags = ["--corrections", "latency=1", "--correction-rounds", "1", "--keep-last-round"]
+    assert main([*args, *flags]) == 0
     out = capsys.readouterr().out
     assert "corrections round 1: " in out and " rollouts completed every segment" in out
     record = json.loads((corrected / "corrections.json").read_text())
     assert record["worlds"] == "latency=1" and record["expert"] == "oracle"
     assert record["relabel"] is True  # the oracle labels the demonstrations' states too
+    assert record["keep"] == "last"
     (only,) = record["per_round"]
     assert only["rollouts"] == 4 and sum(only["corrections"].values()) > 0
     index = {p.name: json.loads((p / "skills.json").read_text()) for p in (plain, corrected)}

@@ -157,7 +157,7 @@ def test_with_the_oracle_acting_every_rollout_completes_its_demonstration():
     a world with a step of latency, takes the task through every segment: the labels
     are what the subgoal asks for."""
     env, skills, origins = _cover_skills()
-    config = CorrectionConfig(parse_world(["latency=1"]), rounds=1, expert_mix=1.0)
+    config = CorrectionConfig(parse_world(["latency=1"]), rounds=1, expert_mix=1.0, keep="last")
     _, (report,) = improve_with_corrections(env, skills, origins, config)
     assert report.completed == len(origins)
     assert all(r.corrections > 0 for r in report.rollouts)
@@ -165,7 +165,7 @@ def test_with_the_oracle_acting_every_rollout_completes_its_demonstration():
 
 def test_corrections_retrain_the_policies_of_the_skills_they_label():
     env, skills, origins = _cover_skills()
-    config = CorrectionConfig(parse_world(["latency=1"]), rounds=1, relabel=False)
+    config = CorrectionConfig(parse_world(["latency=1"]), rounds=1, relabel=False, keep="last")
     lines: list[str] = []
     improved, (report,) = improve_with_corrections(
         env, skills, origins, config, report=lines.append
@@ -247,7 +247,9 @@ def test_doors_corrections_relabel_on_the_scene_and_go_on_past_given_skills():
     assert labels and all(
         labels[id(s)].shape == s.actions.shape for s in segments if id(s) in labels
     )
-    config = CorrectionConfig(parse_world(["action_noise=0.001"]), rounds=1, expert_mix=1.0)
+    config = CorrectionConfig(
+        parse_world(["action_noise=0.001"]), rounds=1, expert_mix=1.0, keep="last"
+    )
     _, (report,) = improve_with_corrections(
         env, skills, origins, config, demo_states=lambda i: demos[i].states
     )
@@ -261,3 +263,24 @@ def test_doors_corrections_relabel_on_the_scene_and_go_on_past_given_skills():
         for plan in steps
     ]
     assert any(r.completed > g for r, g in zip(report.rollouts, given, strict=True))
+
+
+def test_corrections_keep_the_policies_whose_replays_completed_the_most():
+    """keep="best": the last round's policies are replayed once more, and the policies
+    (the plain ones included) that carried the most demonstrations through every segment
+    are returned; the report that measured them says so."""
+    env, skills, origins = _cover_skills()
+    config = CorrectionConfig(parse_world(["latency=1"]), rounds=1, relabel=False)
+    lines: list[str] = []
+    improved, reports = improve_with_corrections(env, skills, origins, config, report=lines.append)
+    first, check = reports
+    assert first.retrained and not check.retrained and check.corrections == ()
+    assert [r.kept for r in reports].count(True) == 1
+    kept_plain = first.kept  # its rollouts replayed the plain policies
+    assert (first.completed > check.completed) == kept_plain
+    same = all(a.policy is b.policy for a, b in zip(improved.skills, skills.skills, strict=True))
+    assert same == kept_plain
+    assert lines[-1].startswith("corrections check: ") and "kept" in lines[-1]
+    assert check.to_json()["retrained"] is False
+    with pytest.raises(ValueError, match="keep must be one of"):
+        CorrectionConfig(parse_world(["latency=1"]), keep="first")
