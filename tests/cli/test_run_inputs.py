@@ -75,7 +75,10 @@ class _NoOracleSkills:
             ["--approach", "bpns", "--baseline-steps", "5"],
             "--baseline-steps applies to the baselines, and none of bpns uses one",
         ),
-        (["--correction-rounds", "2"], "--correction-rounds applies to corrections: add --corrections"),
+        (
+            ["--correction-rounds", "2"],
+            "--correction-rounds applies to corrections: add --corrections",
+        ),
         (["--perturb", "moderat"], None),
         (["--corrections", "latency=-1"], None),
     ],
