@@ -270,7 +270,9 @@ def robustness_sections() -> list[str]:
             'seeds in docs/WORLDS.md, "Corrections from the oracle" (made by '
             "scripts/corrections_table.py) and, for the other domains, in the sections "
             "below whose command has `--corrections` (their plain rows in "
-            "docs/experiments/worlds/*_corr/plain_results.md). The Doors sections before "
+            "docs/experiments/worlds/*_corr/plain_results.md; they kept the last round's "
+            "policies, today `--keep-last-round`: corrections now keep whichever replay "
+            "best, docs/WORLDS.md). The Doors sections before "
             "the one with corrections were measured before a perturbed world's mass "
             "stopped moving the angle its latch opens at (commit fd5058f); sweeps "
             "measured since give the agent's time apart from the world's (\"Agent time "
