@@ -100,14 +100,21 @@ def fraction(text: str) -> float:
     return v
 
 
-def check_correctable(env, worlds: list[str], flag: str, expert: str = "oracle"):
-    """The worlds ``flag`` corrects skills in, parsed and checked against ``env`` (it
-    can be perturbed so, and declares the expert), before any work."""
+def checked_worlds(env, worlds: list[str], flag: str):
+    """The worlds ``flag`` names, parsed and checked against ``env`` (it can be perturbed
+    so), before any work."""
     try:
         parsed = parse_world(worlds)
         perturbed(env, parsed.draw(0))  # an environment without perturbations says so now
     except PerturbationError as err:
         raise UserError(f"{flag}: {err}") from None
+    return parsed
+
+
+def check_correctable(env, worlds: list[str], flag: str, expert: str = "oracle"):
+    """The worlds ``flag`` corrects skills in, checked as :func:`checked_worlds` checks
+    them and against the expert ``env`` must declare, before any work."""
+    parsed = checked_worlds(env, worlds, flag)
     if expert == "oracle" and not env.capabilities.has_oracle_skills:
         raise UserError(
             f"{flag}: environment {env.name!r} declares no oracle skills to label "

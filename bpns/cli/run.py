@@ -19,6 +19,7 @@ from bpns.cli.common import (
     UserError,
     add_eval_set_arguments,
     approach_by_name,
+    checked_worlds,
     default_workers,
     env_by_name,
     eval_set_from,
@@ -43,10 +44,9 @@ from bpns.cli.paths import (
 )
 from bpns.data.datasets import DatasetError
 from bpns.data.demos import check_replay
-from bpns.env.environment import Environment, perturbed
+from bpns.env.environment import Environment
 from bpns.env.object_counts import PAPER_SET, EvalSet
-from bpns.env.perturbations import PerturbationError
-from bpns.env.worlds import WorldDistribution, parse_world
+from bpns.env.worlds import WorldDistribution
 from bpns.evaluation.evaluate import EvalReport
 from bpns.evaluation.reporting import solved_line
 from bpns.learning import LearnedSkills, LearningConfig, describe
@@ -187,13 +187,7 @@ def parse_run(args: argparse.Namespace) -> RunConfig:
         steps = args.baseline_steps
         base = BaselinesConfig() if steps is None else BaselinesConfig.with_max_steps(steps)
         baselines = base.only(stages)
-    worlds = None
-    if args.perturb is not None:
-        try:
-            worlds = parse_world(args.perturb)
-            perturbed(env, worlds.draw(0))  # an environment without perturbations says so
-        except PerturbationError as err:
-            raise UserError(f"--perturb: {err}") from None
+    worlds = None if args.perturb is None else checked_worlds(env, args.perturb, "--perturb")
     # the demonstrations are collected by this run, which records their tasks
     corrections = correction_config_from(args, env)
     check_output_dir(out, "--out")

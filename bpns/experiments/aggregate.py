@@ -313,32 +313,27 @@ def robustness_table(rows: Sequence[Row]) -> str:
     the pooled rate with its Wilson 95 % interval, replans per task and the median time
     over the nominal world's (same approach, demos and execution), in all and without the
     world's own simulation (the agent's time: planning and checking in the model)."""
-    nominal: dict[tuple, float | None] = {}
-    nominal_agent: dict[tuple, float | None] = {}
-    for r in rows:
-        if r.world in (None, "nominal") and r.axis is None:
-            nominal[(r.env, r.approach, r.demos, r.execution, r.corrections)] = (
-                r.median_seconds.mean
-            )
-            nominal_agent[(r.env, r.approach, r.demos, r.execution, r.corrections)] = (
-                r.median_agent_seconds.mean
-            )
+
+    def paired(r: Row) -> tuple:  # rows that share their seeds' tasks
+        return (r.env, r.approach, r.demos, r.execution, r.corrections)
+
+    def ratio(x: float | None, base: float | None) -> str:
+        return "–" if not base or x is None else f"{x / base:.2f}x"
+
+    nominal = {paired(r): r for r in rows if r.world in (None, "nominal") and r.axis is None}
     lines = [ROBUSTNESS_HEADER]
     for r in rows:
         solved, tasks = r.pooled
         low, high = r.pooled_interval
-        base = nominal.get((r.env, r.approach, r.demos, r.execution, r.corrections))
-        median = r.median_seconds.mean
-        ratio = "–" if not base or median is None else f"{median / base:.2f}x"
-        base_agent = nominal_agent.get((r.env, r.approach, r.demos, r.execution, r.corrections))
-        agent = r.median_agent_seconds.mean
-        agent_ratio = "–" if not base_agent or agent is None else f"{agent / base_agent:.2f}x"
+        base = nominal.get(paired(r))
+        time_ratio = ratio(r.median_seconds.mean, base and base.median_seconds.mean)
+        agent_ratio = ratio(r.median_agent_seconds.mean, base and base.median_agent_seconds.mean)
         world = r.world or (f"{r.axis}={r.level:g}" if r.axis is not None else "nominal")
         lines.append(
             f"| {r.env} | {r.label} | {'–' if r.demos is None else r.demos} | {world} "
             f"| {r.execution or 'closed-loop'} | {len(r.seeds)} | {r.solved_percent.format('.1f')} "
             f"| {solved}/{tasks} [{100 * low:.1f}, {100 * high:.1f}] "
-            f"| {r.replans.format('.2f')} | {r.median_seconds.format('.2f')} | {ratio} "
+            f"| {r.replans.format('.2f')} | {r.median_seconds.format('.2f')} | {time_ratio} "
             f"| {agent_ratio} |"
         )
     return "\n".join(lines) + "\n"

@@ -377,18 +377,18 @@ def run_rollout(
         skill = None if step.skill is None else job.skills[step.skill]
         if skill is None:
             return out, RolloutSummary(completed, len(job.steps), "no skill", len(out))
-        acting = skill  # a given skill (the environment's own policy) acts as it is
+        labeller = None  # a given skill (the environment's own policy) acts as it is
         if isinstance(skill.policy, LearnedPolicy):
             labeller = _Labeller(world, step.skill, skill.policy, config.expert_mix, rng, out)
             if demonstrator is not None and demonstrator_alive:
                 labeller.expert = demonstrator
             elif step.oracle is not None and oracle:
                 labeller.expert = _OracleCommand(oracle[step.oracle.skill], step.oracle)
-            acting = dataclasses.replace(skill, policy=labeller)
+        acting = skill if labeller is None else dataclasses.replace(skill, policy=labeller)
         ground = skill.operator.ground(step.objects)
         test = completion_test(ground, ground.apply(abstract(state, job.predicates)))
         result = executor.execute(acting, step.objects, step.subgoal, state, test, used)
-        if acting is not skill:
+        if labeller is not None:
             demonstrator_alive = demonstrator_alive and labeller.expert is not None
         if not isinstance(result, Executed):
             summary = RolloutSummary(completed, len(job.steps), result.value, len(out), skill.name)
