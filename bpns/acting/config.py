@@ -50,6 +50,12 @@ class ExecutionConfig:
                       slower arm stays stable under more latency. The skill's horizon in
                       the world grows by 1 / world_speed with it. Refinement in the model
                       moves at full speed; 1.0: as commanded.
+    resume_stopped:   when a replan finds no abstract plan from the world's state, plan
+                      again letting the first step be an operator that lacks only
+                      preconditions it deletes itself: a skill the world stopped midway
+                      (a hand that reached the doorway but not the handle) leaves a state
+                      no demonstration shows, from which the learned operators offer no
+                      way on; refinement in the model checks that the skill finishes.
     slow_from:        when ``world_speed`` takes effect: from the task's ``start``, or from
                       the first ``deviation`` (a skill boundary where the world's features
                       left the model's prediction by more than ``rerefine_atol``, or a
@@ -65,6 +71,7 @@ class ExecutionConfig:
     horizon_scale: float = 2.0
     world_speed: float = 1.0
     slow_from: str = SLOW_FROM[0]
+    resume_stopped: bool = True
 
     def __post_init__(self) -> None:
         if isinstance(self.max_replans, bool) or not isinstance(self.max_replans, int):

@@ -7,11 +7,13 @@
 fails in the world, or loses such an atom while it runs, or a boundary that lacks one, is
 a divergence. A divergence is repaired from the world's current state: first the rest of
 the same abstract plan, from the last step whose needed atoms hold (refinement only, no
-search), then a new bilevel plan; at most ``max_replans`` times, within the task's
-deadline. Where the world's features left the model's prediction by more than
-``rerefine_atol`` at a boundary, the rest of the plan is checked again from where things
-really are: kept as it is when its subgoals still reach the goal in the model from there
-(one rollout per step), else refined again (new subgoals, same abstract plan).
+search), then a new bilevel plan, and when the abstract search finds none, a plan whose
+first step finishes a skill the world stopped midway (``ExecutionConfig.resume_stopped``);
+at most ``max_replans`` times, within the task's deadline. Where the world's features
+left the model's prediction by more than ``rerefine_atol`` at a boundary, the rest of the
+plan is checked again from where things really are: kept as it is when its subgoals
+still reach the goal in the model from there (one rollout per step), else refined again
+(new subgoals, same abstract plan).
 
 A step whose world start state is bit-identical to the model's, under the very same
 physics and at full speed (``world_speed`` 1), takes over the model's segment instead of
@@ -134,13 +136,20 @@ class ClosedLoopPlanner:
         return Task(adopt_state(self.model, world.state), task.goal, task.horizon - world.used)
 
     def _plan(
-        self, world: WorldRun, rng: np.random.Generator, deadline: float, stats: ClosedLoopStats
+        self,
+        world: WorldRun,
+        rng: np.random.Generator,
+        deadline: float,
+        stats: ClosedLoopStats,
+        resume_from: frozenset[GroundAtom] | None = None,
     ) -> list[PlannedStep] | FailureReason:
         remaining = deadline - time.monotonic()
         if remaining <= 0:
             return FailureReason.TIMEOUT
         config = dataclasses.replace(self.config, timeout=remaining)
-        result = plan(self._model_task(world), self.skills, self.model, config, rng)
+        result = plan(
+            self._model_task(world), self.skills, self.model, config, rng, resume_from=resume_from
+        )
         s = result.stats
         stats.nodes_created += s.nodes_created
         stats.abstract_plans += s.abstract_plans_tried
@@ -149,8 +158,8 @@ class ClosedLoopPlanner:
         if not result.success:
             if result.furthest is not None and stats.furthest is None:
                 stats.furthest = result.furthest
-            if self.explain is not None and stats.explanation is None:
-                stats.explanation = self.explain(s)
+            if self.explain is not None and (stats.explanation is None or resume_from):
+                stats.explanation = self.explain(s)  # a resumption's attempts say more
             return result.reason or FailureReason.REFINEMENT_FAILED
         skeleton = result.skeleton
         assert skeleton is not None
@@ -263,6 +272,7 @@ class ClosedLoopPlanner:
         if isinstance(steps, FailureReason):
             return failed(steps)
         needed = necessary_atoms([s.op for s in steps], world.task.goal)
+        seen = set(world.atoms())  # every atom the world showed at a boundary
         i = 0
         while not world.goal_holds():
             problem = None
@@ -271,6 +281,7 @@ class ClosedLoopPlanner:
             else:
                 problem = self._execute(world, steps[i], needed[i + 1])
                 executed.append(str(steps[i].op))
+                seen |= world.atoms()
             if problem is None:
                 missing = needed[i + 1] - world.atoms()
                 if missing:
@@ -299,7 +310,7 @@ class ClosedLoopPlanner:
                 return failed(FailureReason.TASK_HORIZON)
             if stats.replans > self.execution.max_replans:
                 return failed(FailureReason.REPLAN_BUDGET)
-            repaired = self._repair(world, steps, needed, rng, deadline, stats)
+            repaired = self._repair(world, steps, needed, frozenset(seen), rng, deadline, stats)
             if isinstance(repaired, FailureReason):
                 world.event(
                     "replan_failed",
@@ -369,11 +380,13 @@ class ClosedLoopPlanner:
         world: WorldRun,
         steps: list[PlannedStep],
         needed: Sequence[frozenset[GroundAtom]],
+        seen: frozenset[GroundAtom],
         rng: np.random.Generator,
         deadline: float,
         stats: ClosedLoopStats,
     ) -> list[PlannedStep] | FailureReason:
-        """The rest of the same abstract plan from where it still applies, else a new plan."""
+        """The rest of the same abstract plan from where it still applies, else a new plan,
+        else (no abstract plan at all) one that first finishes a skill stopped midway."""
         j = repair_point(needed, world.atoms())
         if j is not None and j < len(steps):
             rest = self._refine_rest(world, [s.op for s in steps[j:]], rng, deadline, stats)
@@ -384,6 +397,15 @@ class ClosedLoopPlanner:
                 )
                 return rest
         new = self._plan(world, rng, deadline, stats)
+        if new is FailureReason.NO_ABSTRACT_PLAN and self.execution.resume_stopped:
+            new = self._plan(world, rng, deadline, stats, resume_from=seen)
+            if not isinstance(new, FailureReason) and not new[0].op.applicable(world.atoms()):
+                world.event(
+                    "replanned",
+                    f"replan {stats.replans}: a new plan of {len(new)} steps that first "
+                    f"finishes {new[0].op}, stopped midway",
+                )
+                return new
         if not isinstance(new, FailureReason):
             world.event("replanned", f"replan {stats.replans}: a new plan of {len(new)} steps")
         return new

@@ -292,6 +292,13 @@ def add_world_arguments(p: argparse.ArgumentParser) -> None:
         help="closed loop: --world-speed takes effect from the task's start, or from the "
         "first deviation of the world from the model (default: %(default)s)",
     )
+    p.add_argument(
+        "--no-resume",
+        dest="resume_stopped",
+        action="store_false",
+        help="closed loop: when a replan finds no abstract plan, fail, instead of planning "
+        "again with a first step that finishes a skill the world stopped midway",
+    )
 
 
 def world_settings(
@@ -320,6 +327,7 @@ def world_settings(
         horizon_scale=scale,
         world_speed=args.world_speed,
         slow_from=args.slow_from,
+        resume_stopped=args.resume_stopped,
     )
     return worlds, model, execution
 

@@ -29,7 +29,7 @@ from bpns.planning.heuristics import make_heuristic
 from bpns.planning.nogoods import NogoodMemo, PrefixCache, RefutedAchievers, SetAsidePrefixes
 from bpns.planning.refinement import RefinementResult, RefinementStats, refine
 from bpns.planning.search import STRATEGIES, AbstractPlan, SearchStats, skeletons
-from bpns.planning.strips import SearchTimeout, ground
+from bpns.planning.strips import GroundProblem, SearchTimeout, ground
 from bpns.structs import GroundAtom, GroundOperator, Skill, State, STRIPSOperator, Task
 
 
@@ -106,8 +106,17 @@ def plan(
     env: Environment,
     config: PlanningConfig,
     rng: np.random.Generator,
+    *,
+    resume_from: frozenset[GroundAtom] | None = None,
 ) -> PlanResult:
-    """Solve ``task`` with ``skills`` by bilevel planning within ``config.timeout`` seconds."""
+    """Solve ``task`` with ``skills`` by bilevel planning within ``config.timeout`` seconds.
+
+    ``resume_from`` (atoms seen true earlier in the same run): plan from a state where a
+    skill was stopped midway, which the learned operators need not describe (the
+    demonstrations never stop one); the first step may be an operator that lacks only
+    preconditions it deletes itself (:func:`bpns.planning.search.skeletons`'s
+    ``resume``), grounded as if the atoms seen earlier still held. Refinement in the
+    model decides whether the skill really finishes from there."""
     start = time.monotonic()
     deadline = start + config.timeout
     by_operator = _skills_by_operator(skills)
@@ -119,7 +128,7 @@ def plan(
         return acc.result(True, task, action_dim, None, AbstractPlan((), (init_atoms,), 0.0))
 
     try:
-        generator = _Skeletons(task, by_operator, init_atoms, config, deadline, acc)
+        generator = _Skeletons(task, by_operator, init_atoms, config, deadline, acc, resume_from)
         refiner = _Refiner(
             task,
             by_operator,
@@ -164,10 +173,19 @@ class _Skeletons:
         config: PlanningConfig,
         deadline: float,
         acc: _Accumulator,
+        resume_from: frozenset[GroundAtom] | None = None,
     ) -> None:
         t0 = time.monotonic()
         try:
-            self.problem = ground(list(by_operator), task.objects, init_atoms, task.goal, deadline)
+            if resume_from is None:
+                reach = init_atoms
+            else:  # operators a stopped skill may finish need atoms no longer true
+                reach = init_atoms | resume_from
+            self.problem = ground(list(by_operator), task.objects, reach, task.goal, deadline)
+            if reach is not init_atoms:
+                self.problem = GroundProblem.from_ground_operators(
+                    self.problem.operators, init_atoms, task.goal
+                )
             self.heuristic = (
                 None if config.search == "ucs" else make_heuristic(config.heuristic, self.problem)
             )
@@ -178,6 +196,7 @@ class _Skeletons:
         self.max_length = min(config.max_plan_length, task.horizon)  # each skill acts >= once
         self.deadline = deadline
         self.acc = acc
+        self.resume = resume_from is not None
         self.yielded: set[tuple[GroundOperator, ...]] = set()
         self.demotions = (
             None if config.demote_refuted is None else RefutedAchievers(config.demote_refuted)
@@ -201,6 +220,7 @@ class _Skeletons:
             stats=self.acc.search,
             extra_cost=extra,
             skip=self.yielded,
+            resume=self.resume,
         )
 
     def next(self) -> AbstractPlan | None:

@@ -102,6 +102,7 @@ def skeletons(
     stats: SearchStats | None = None,
     extra_cost: Sequence[float] | None = None,
     skip: Container[tuple[GroundOperator, ...]] = (),
+    resume: bool = False,
 ) -> Iterator[AbstractPlan]:
     """Yield up to ``max_skeletons`` distinct abstract plans in ``priority`` order.
 
@@ -111,7 +112,12 @@ def skeletons(
     Operator ``i`` costs ``1 + extra_cost[i]`` (1 without ``extra_cost``); the heuristic
     never sees the extra, so it stays admissible. Plans whose operators are in ``skip``
     (yielded by an earlier search of the same problem) are passed over and not counted.
-    ``heuristic=None`` means h = 0 (and no dead-end pruning). The generator raises
+    ``heuristic=None`` means h = 0 (and no dead-end pruning). With ``resume`` the first
+    step may also be an operator whose only unmet preconditions are atoms it deletes
+    itself (a skill the world stopped midway: its delete effects happened, its add
+    effects not yet), so a plan may let that skill finish; the root is then not pruned
+    as a dead end, since such a state is outside what the operators describe. The
+    generator raises
     :class:`~bpns.planning.strips.SearchTimeout` once ``deadline`` (a
     ``time.monotonic()`` value) has passed, and simply ends when the space is exhausted.
     """
@@ -119,13 +125,13 @@ def skeletons(
     h_of = heuristic if heuristic is not None else (lambda s: 0.0)
     check_deadline(deadline)
     h0 = h_of(problem.init)
-    if h0 == math.inf or max_skeletons < 1:
+    if max_skeletons < 1 or (h0 == math.inf and not resume):
         return
     counter = itertools.count()
     root = _Node(problem.init, None, -1, 0.0, 0)
     stats.nodes_created += 1
     frontier: list[tuple[tuple[float, ...], int, _Node]] = [
-        (priority(0.0, h0), next(counter), root)
+        (priority(0.0, h0 if h0 < math.inf else 0.0), next(counter), root)
     ]
     pops: dict[int, int] = {}
     n_yielded = 0
@@ -152,7 +158,10 @@ def skeletons(
         if node.depth >= max_length:
             continue
         stats.nodes_expanded += 1
+        resuming = resume and node.parent is None
         for i, p in enumerate(pre):
+            if resuming:
+                p &= ~delete[i]
             if state & p != p:
                 continue
             g = node.g + 1.0 + (extra_cost[i] if extra_cost is not None else 0.0)

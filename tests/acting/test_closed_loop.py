@@ -376,3 +376,66 @@ def test_a_replan_that_finds_no_plan_says_from_which_abstract_state():
     assert len(failed) == 1
     assert failed[0].text.startswith("replan 1 found no plan: ")
     assert "from {HandEmpty(robot)" in failed[0].text and failed[0].text.endswith("}")
+
+
+class Dimmer(toy.ToyLights):
+    """A push raises light i's level by 0.6 (at most to 1): one push turns it on."""
+
+    def simulate(self, state: State, action: np.ndarray) -> State:
+        data = {}
+        for o, v in state.data.items():
+            v = v.copy()
+            if action[int(v[1])] > 0.5:
+                v[0] = min(1.0, v[0] + 0.6)
+            data[o] = v
+        return State(data)
+
+
+class StallsHalfway(Dimmer):
+    """The world's first push stops at level 0.5, neither on nor off, and the switch
+    sticks for the next ``stuck`` pushes: the skill ends stuck midway."""
+
+    def __init__(self, n: int, stuck: int) -> None:
+        super().__init__(n)
+        self.pushes, self.stuck = 0, stuck
+
+    def simulate(self, state: State, action: np.ndarray) -> State:
+        if float(np.max(action)) <= 0.5:
+            return super().simulate(state, action)
+        self.pushes += 1
+        if self.pushes > 1 + self.stuck:
+            return super().simulate(state, action)
+        data = {o: v.copy() for o, v in state.data.items()}
+        if self.pushes == 1:
+            for v in data.values():
+                if action[int(v[1])] > 0.5:
+                    v[0] = 0.5
+        return State(data)
+
+
+def test_a_skill_stopped_midway_is_finished_when_no_operator_leads_on_from_there():
+    # TurnOn stalls halfway in the world: the light is neither Off nor On, a state no
+    # operator starts from; the replan lets TurnOn finish (it lacks only Off, which it
+    # deletes anyway), the model confirms it does, and the world's light comes on
+    config = dataclasses.replace(CONFIG, stuck_steps=3)
+    (light,) = toy.lights(1)
+    task = toy.lights_task(1, frozenset({GroundAtom(toy.ON, (light,))}))
+    model = Dimmer(1)
+    planner = BilevelPlanning(model, toy.light_skills(), config)
+
+    def solve(execution: ExecutionConfig):
+        world = StallsHalfway(1, stuck=3)
+        return planner.solve_in_world(task, model, world, np.random.default_rng(0), 20.0, execution)
+
+    strict = solve(ExecutionConfig(resume_stopped=False))
+    assert not strict.success and strict.reason is FailureReason.NO_ABSTRACT_PLAN
+    solution = solve(ExecutionConfig())
+    assert solution.success and solution.replans == 1
+    texts = [e.text for e in solution.rollout.events]
+    assert texts[0] == "replan 1: TurnOn(light00) failed in the world: stuck"
+    assert (
+        texts[1] == "replan 1: a new plan of 1 steps that first finishes TurnOn(light00), "
+        "stopped midway"
+    )
+    assert [s.operator for s in solution.rollout.steps] == ["TurnOn", "TurnOn"]
+    assert plan_reaches_goal(StallsHalfway(1, stuck=3), task, solution.actions)

@@ -161,3 +161,24 @@ def test_search_raises_timeout_past_its_deadline():
         for _ in skeletons(p, HFF(p), astar, max_skeletons=8, max_length=100, deadline=start + 0.3):
             pass
     assert time.monotonic() - start < 0.3 + 1.0  # obeyed within 1 s (the contract)
+
+
+def test_resuming_lets_the_first_step_lack_only_preconditions_it_deletes():
+    # a drive to the door stopped midway: it left the room (AtStart gone, as its effects
+    # say) but never reached the door; no operator describes that state
+    go = toy.op("Go", pre={"AtStart", "Ready"}, add={"AtDoor"}, delete={"AtStart"})
+    open_door = toy.op("Open", pre={"AtDoor"}, add={"Open"})
+    jump = toy.op("Jump", pre={"Ready", "Key"}, add={"Open"})  # lacks Key: never resumed
+    p = toy.problem([go, open_door, jump], init={"Ready"}, goal={"Open"})
+    assert list(skeletons(p, LMCut(p), astar, max_skeletons=4, max_length=5)) == []
+    plans = list(skeletons(p, LMCut(p), astar, max_skeletons=4, max_length=5, resume=True))
+    assert [[o.name for o in pl.operators] for pl in plans] == [["Go", "Open"]]
+    assert plans[0].atoms[1] == frozenset({toy.atom("Ready"), toy.atom("AtDoor")})
+
+
+def test_resuming_relaxes_only_the_first_step():
+    # Go lacks AtStart only after Back deleted it: deeper in the plan it stays strict
+    back = toy.op("Back", pre={"Ready"}, add={"Moved"}, delete={"AtStart"})
+    go = toy.op("Go", pre={"AtStart", "Moved"}, add={"Open"}, delete={"AtStart"})
+    p = toy.problem([back, go], init={"Ready", "AtStart"}, goal={"Open"})
+    assert list(skeletons(p, None, astar, max_skeletons=4, max_length=5, resume=True)) == []
