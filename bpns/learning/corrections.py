@@ -336,7 +336,9 @@ class _Labeller:
 
 @dataclass(frozen=True, eq=False)
 class RolloutJob:
-    """Everything one rollout needs, picklable for a worker process."""
+    """Everything one rollout needs, picklable for a worker process. ``measure_only``:
+    the learned policies act alone and nobody labels (the keep-best check measures the
+    policies; asking the expert there would cost its every command and teach nothing)."""
 
     env_name: str
     skills: tuple[Skill, ...]
@@ -344,6 +346,7 @@ class RolloutJob:
     origin: DemoOrigin
     steps: tuple[PlannedStep, ...]
     config: CorrectionConfig
+    measure_only: bool = False
 
 
 _ENVIRONMENTS: dict[str, Environment] = {}
@@ -364,7 +367,9 @@ def run_rollout(
     task = world.task(origin.index, origin.seed, True)
     demonstrator = None
     oracle: tuple[Skill, ...] = ()
-    if config.expert == "demonstrator":
+    if job.measure_only:
+        pass
+    elif config.expert == "demonstrator":
         demonstrator = env.demonstrator(task, np.random.default_rng([origin.seed, origin.index]))
     else:  # made once per process: every rollout asks the same hand-written skills
         oracle = _ORACLES.get(env.name) or _ORACLES.setdefault(env.name, hand_written(env))
@@ -378,7 +383,7 @@ def run_rollout(
         if skill is None:
             return out, RolloutSummary(completed, len(job.steps), "no skill", len(out))
         labeller = None  # a given skill (the environment's own policy) acts as it is
-        if isinstance(skill.policy, LearnedPolicy):
+        if isinstance(skill.policy, LearnedPolicy) and not job.measure_only:
             labeller = _Labeller(world, step.skill, skill.policy, config.expert_mix, rng, out)
             if demonstrator is not None and demonstrator_alive:
                 labeller.expert = demonstrator
@@ -417,13 +422,15 @@ def collect_corrections(
     origins: Sequence[DemoOrigin],
     config: CorrectionConfig,
     workers: int = 1,
+    measure_only: bool = False,
 ) -> Iterator[tuple[list[Correction], RolloutSummary]]:
     """One rollout per demonstration the skills were learned from (``origins`` and its
-    :func:`rollout_steps` in the same order), in ``workers`` processes, yielded in order."""
+    :func:`rollout_steps` in the same order), in ``workers`` processes, yielded in order
+    (``measure_only``: :class:`RolloutJob`'s)."""
     if not len(origins) == len(steps) == len(skills.segments):
         raise ValueError(f"{len(origins)} task origins for {len(skills.segments)} demonstrations")
     jobs = (
-        RolloutJob(env.name, skills.skills, skills.predicates, origin, s, config)
+        RolloutJob(env.name, skills.skills, skills.predicates, origin, s, config, measure_only)
         for origin, s in zip(origins, steps, strict=True)
     )
     if workers <= 1:
@@ -579,7 +586,12 @@ def improve_with_corrections(
     if config.keep == "last":
         return current, tuple(reports)
     t0 = time.perf_counter()
-    check = [s for _, s in collect_corrections(env, current, steps, origins, config, workers)]
+    check = [
+        s
+        for _, s in collect_corrections(
+            env, current, steps, origins, config, workers, measure_only=True
+        )
+    ]
     reports.append(RoundReport(tuple(check), (), time.perf_counter() - t0, retrained=False))
     replayed.append(current)
     best = max(range(len(reports)), key=lambda i: (reports[i].completed, i))

@@ -275,6 +275,9 @@ def test_corrections_keep_the_policies_whose_replays_completed_the_most():
     improved, reports = improve_with_corrections(env, skills, origins, config, report=lines.append)
     first, check = reports
     assert first.retrained and not check.retrained and check.corrections == ()
+    # the check measures the policies alone: the expert is not asked there
+    assert all(r.corrections == 0 for r in check.rollouts)
+    assert any(r.corrections > 0 for r in first.rollouts)
     assert [r.kept for r in reports].count(True) == 1
     kept_plain = first.kept  # its rollouts replayed the plain policies
     assert (first.completed > check.completed) == kept_plain
