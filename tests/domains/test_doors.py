@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from bpns.env.abstraction import abstract
+from bpns.structs import State
 from mj_envs.domains.doors.demonstrator import room_of, room_path
 from mj_envs.domains.doors.env import DoorsEnv
 from mj_envs.domains.doors.motion import BasePlanner, scene_boxes
@@ -19,10 +20,16 @@ from mj_envs.domains.doors.rules import (
     required_angle,
 )
 from mj_envs.domains.doors.skills import (
+    ABOVE,
+    FINGERS_OPEN,
+    KNOB_Z,
+    POS_TOL,
     MoveToDoorPolicy,
     OpenDoorPolicy,
     approach_pose,
+    grasp_wrist_delta,
     plan_base_path,
+    reach_handle,
 )
 
 
@@ -61,6 +68,33 @@ def test_touching_door_follows_finger_contacts(env):
     for _ in range(15):
         s = env.simulate(s, np.array([0, 0, 0, 0, 0, 0.01, 0, 1.0]))
     assert s.get(door, "touched") == 0.0 and not _contact_with_wing(env, s, door)
+
+
+def test_reaching_the_handle_keeps_descending_through_a_wobble(env):
+    """A hand that rings about its target (two steps of command latency) meets the strict
+    bounds for the descent only now and then: once it has begun descending, an error
+    that would have kept it hovering no longer sends it back up; a larger one does."""
+    s, robot, door = _touch(env, env.train_tasks(1, seed=5)[0])
+    feature = ROBOT.feature_names.index
+
+    def hand_at(height: float, off: float) -> State:
+        data = {o: v.copy() for o, v in s.data.items()}
+        v = data[robot]
+        v[feature("hand_x")] = s.get(door, "knob_x") + off
+        v[feature("hand_y")] = s.get(door, "knob_y")
+        v[feature("hand_z")] = KNOB_Z + height
+        v[feature("fingers")] = FINGERS_OPEN + 0.004
+        state = State(data)
+        v[feature("wrist")] += grasp_wrist_delta(state, robot, door)  # fingers aligned
+        return State(data)
+
+    def dz(height: float, off: float) -> float:
+        return float(reach_handle(hand_at(height, off), robot, door)[5])
+
+    assert dz(ABOVE, 0.0) < 0  # aligned above the wing: descend
+    assert dz(ABOVE, 1.2 * POS_TOL) == pytest.approx(0.0, abs=1e-9)  # not yet: hover
+    assert dz(ABOVE - 0.03, 1.2 * POS_TOL) < 0  # already descending: go on
+    assert dz(ABOVE - 0.03, 2.0 * POS_TOL) > 0  # too far off: back up above the wing
 
 
 def test_latch_releases_only_at_the_doors_angle_then_the_leaf_opens(env):

@@ -52,6 +52,7 @@ from mj_envs.robots.mobile_panda import to_base_frame
 CARRY = np.array([0.45, 0.0, 0.35])  # hand in the base frame while driving
 CARRY_WRIST = math.pi / 2  # hand x axis relative to the base's heading at home
 ABOVE = 0.07  # hand height above the wing before descending
+DESCENDING = 0.02  # a hand this far below ABOVE has begun its descent onto the wing
 POS_TOL, YAW_TOL = 0.015, 0.03
 FINGERS_OPEN, FINGERS_GRIP = 0.035, 0.016
 TURN_GAIN = 0.3
@@ -186,13 +187,21 @@ class MoveToDoorPolicy:
 
 
 def reach_handle(state: State, robot: Object, door: Object) -> np.ndarray:
-    """Open fingers above the wing, aligned with it; descend; close until touching."""
+    """Open fingers above the wing, aligned with it; descend; close until touching.
+
+    The descent starts once the hand is within ``POS_TOL`` of the wing and the fingers
+    within 0.05 rad of it, and goes on while they stay within looser bounds (1.5x,
+    0.15 rad; the open fingers clear the wing by 24 mm): without that hysteresis a
+    hand that rings about its target (two steps of command latency) meets the strict
+    bounds only for a step at a time and hovers above the wing until its horizon."""
     xy, yaw, hand, wrist, fingers = _robot(state, robot)
     knob = np.array([state.get(door, "knob_x"), state.get(door, "knob_y"), KNOB_Z])
     dw = grasp_wrist_delta(state, robot, door)
     err_xy = float(np.max(np.abs(knob[:2] - hand[:2])))
-    aligned = abs(dw) < 0.05
-    if hand[2] > knob[2] + 0.02 and (err_xy > POS_TOL or not aligned or fingers < FINGERS_OPEN):
+    descending = hand[2] < knob[2] + ABOVE - DESCENDING
+    aligned = abs(dw) < (0.15 if descending else 0.05)
+    xy_tol = 1.5 * POS_TOL if descending else POS_TOL
+    if hand[2] > knob[2] + 0.02 and (err_xy > xy_tol or not aligned or fingers < FINGERS_OPEN):
         a, _ = _hand_to(state, robot, knob + np.array([0, 0, ABOVE]), wrist, 1.0)
     elif hand[2] > knob[2] + 0.004:
         a, _ = _hand_to(state, robot, knob, wrist, 1.0, speed=0.01)
