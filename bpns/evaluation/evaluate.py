@@ -33,9 +33,10 @@ from bpns.env.perturbations import NOMINAL, Perturbation
 from bpns.env.registry import make_environment
 from bpns.env.worlds import NOMINAL_MODEL, ModelSpec, WorldDistribution
 from bpns.evaluation.intervals import wilson_interval
+from bpns.execution.failures import FailureReason
 from bpns.execution.rollouts import Event, Rollout
 from bpns.planning.config import PlanningConfig
-from bpns.pools import make_pool, pool_map
+from bpns.pools import WorkerDiedError, make_pool, pool_map, result_of, submit
 from bpns.structs import Task
 
 
@@ -392,7 +393,13 @@ def _run_index(index: int) -> TaskOutcome:
 
 
 def run_tasks(spec: EvalSpec, indices: Sequence[int], workers: int = 1) -> Iterator[TaskOutcome]:
-    """Yield one outcome per task index, in order. ``workers`` > 1 uses a process pool."""
+    """Yield one outcome per task index, in order. ``workers`` > 1 uses a process pool.
+
+    A worker that dies (the kernel's out-of-memory killer, a crash in native code, a
+    stray ``kill``) costs no other task: the pool breaks, the first task not yet returned
+    runs again alone in a fresh worker and is a ``worker_died`` failure only if that one
+    dies too; the remaining tasks go on in a fresh pool. Each task's outcome depends on
+    its index alone, so a task run again gives what it would have given."""
     if workers <= 1 or len(indices) <= 1:
         _init_worker(spec)
         try:
@@ -400,8 +407,45 @@ def run_tasks(spec: EvalSpec, indices: Sequence[int], workers: int = 1) -> Itera
         finally:
             _WORKER.clear()
         return
-    with make_pool(min(workers, len(indices)), _init_worker, (spec,)) as pool:
-        yield from pool_map(pool, _run_index, indices, name=lambda i: f"eval task {i}")
+    pending = list(indices)
+    while pending:
+        try:
+            with make_pool(min(workers, len(pending)), _init_worker, (spec,)) as pool:
+                for outcome in pool_map(pool, _run_index, list(pending), name=_job):
+                    pending.pop(0)
+                    yield outcome
+            return
+        except WorkerDiedError:
+            pass
+        yield _run_alone(spec, pending.pop(0))
+
+
+def _job(index: int) -> str:
+    return f"eval task {index}"
+
+
+def _run_alone(spec: EvalSpec, index: int) -> TaskOutcome:
+    """Task ``index`` in a worker of its own; its worker dying is the task's failure."""
+    start = time.monotonic()
+    try:
+        with make_pool(1, _init_worker, (spec,)) as pool:
+            return result_of(submit(pool, _run_index, index, _job(index)), _job(index))
+    except WorkerDiedError:
+        base = eval_environment(make_environment(spec.env_name), spec.eval_set)
+        return TaskOutcome(
+            index=index,
+            solved=False,
+            seconds=time.monotonic() - start,
+            reason=FailureReason.WORKER_DIED,
+            num_actions=0,
+            nodes_created=0,
+            abstract_plans=0,
+            samples=0,
+            sim_steps=0,
+            validated=None,
+            actions=np.zeros((0, np.asarray(base.action_low).size)),
+            world=spec.worlds.draw(index),
+        )
 
 
 def evaluate(

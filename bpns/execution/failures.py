@@ -17,6 +17,7 @@ class FailureReason(str, enum.Enum):
     EXHAUSTED = "exhausted"  # one abstract plan: every sample of its first step failed
     SET_ASIDE = "set_aside"  # one abstract plan: a step failed from too many arrivals
     NO_SKILL = "no_skill"  # a metacontroller found no ground skill to execute
+    WORKER_DIED = "worker_died"  # the process solving it died, twice (evaluation)
     # executing in a world that differs from the planner's model
     GOAL_NOT_REACHED = "goal_not_reached"  # a plan replayed open loop missed the goal
     REPLAN_BUDGET = "replan_budget"  # closed loop: the world diverged more often than allowed
@@ -49,6 +50,9 @@ MEANING: dict[FailureReason, str] = {
     FailureReason.SET_ASIDE: "one step failed every sample from several different arrivals: "
     "the plan was set aside for the other abstract plans (refined again after them)",
     FailureReason.NO_SKILL: "no ground skill was left to execute",
+    FailureReason.WORKER_DIED: "the worker process solving the task died, also when it ran "
+    "again alone (killed, most often by the kernel's out-of-memory killer, or crashed in "
+    "native code)",
     FailureReason.GOAL_NOT_REACHED: "the plan found in the model, replayed open loop in the "
     "world, did not reach the goal",
     FailureReason.REPLAN_BUDGET: "the world diverged from the plan more often than the "
