@@ -48,6 +48,13 @@ WORKER_DIED = (
 )
 
 
+#: a job's failure when its worker died twice (:func:`surviving_map`)
+WORKER_DIED_ALONE = (
+    "the worker process died, also when the job ran again alone (killed, most often by "
+    "the kernel's out-of-memory killer, or crashed in native code)"
+)
+
+
 def worker_died(job: str | None = None) -> WorkerDiedError:
     """The error for a dead worker; ``job`` names what was unfinished (e.g. "task 3")."""
     if job is None:
@@ -192,3 +199,57 @@ def bounded_map(
     finally:
         for future in pending:
             future.cancel()
+
+
+def surviving_map(
+    new_pool: Callable[[int | None], Executor],
+    fn: Callable[[T], R],
+    items: Iterable[T],
+    in_flight: int,
+    died: Callable[[T], R],
+) -> Iterator[R]:
+    """:func:`bounded_map` that outlives its workers: ``map(fn, items)`` in order, in pools
+    made by ``new_pool(None)``. A worker that dies (the kernel's out-of-memory killer, a
+    crash in native code, a stray ``kill``) breaks its pool and every unfinished job
+    with it; those (at most ``in_flight``) run again one at a time, each alone in
+    ``new_pool(1)``, and ``died(item)`` stands for the result of one whose lone worker
+    dies too; the rest of ``items`` go on in a fresh pool. For jobs whose result depends
+    on the item alone (a task index and its seeds), a job run again gives what it would
+    have given. A job that kills every worker it runs in breaks one pool at most."""
+    rest = iter(items)
+    while True:
+        pending: collections.deque[list[Any]] = collections.deque()  # [item, future]
+        try:
+            with new_pool(None) as pool:
+                while True:
+                    while len(pending) < max(1, in_flight):
+                        item = next(rest, _END)
+                        if item is _END:
+                            break
+                        pending.append([item, None])
+                        pending[-1][1] = submit(pool, fn, item)
+                    if not pending:
+                        return
+                    out = result_of(pending[0][1])
+                    pending.popleft()
+                    yield out
+        except WorkerDiedError:
+            unfinished = [item for item, _ in pending]
+        for item in unfinished:  # which one's worker died is unknown: each alone, in turn
+            yield _alone(new_pool, fn, item, died)
+
+
+_END: Any = object()
+
+
+def _alone(
+    new_pool: Callable[[int | None], Executor],
+    fn: Callable[[T], R],
+    item: T,
+    died: Callable[[T], R],
+) -> R:
+    try:
+        with new_pool(1) as pool:
+            return result_of(submit(pool, fn, item))
+    except WorkerDiedError:
+        return died(item)

@@ -25,6 +25,7 @@ from bpns.pools import (
     pool_map,
     result_of,
     submit,
+    surviving_map,
 )
 
 
@@ -150,3 +151,35 @@ def test_workers_exit_when_their_parent_is_killed():
     finally:
         parent.kill()
         parent.wait()
+
+
+def _die_once_on_two(job: tuple[str, int]) -> int:
+    """Item 2 kills its worker the first time only (a marker file remembers)."""
+    marker, x = job
+    if x == 2 and not os.path.exists(marker):
+        Path(marker).touch()
+        os.kill(os.getpid(), signal.SIGKILL)
+    return x * 10
+
+
+def _always_die_on_two(job: tuple[str, int]) -> int:
+    if job[1] == 2:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return job[1] * 10
+
+
+@pytest.mark.parametrize("fn", [_die_once_on_two, _always_die_on_two])
+def test_surviving_map_runs_an_unfinished_job_again_alone_and_goes_on(tmp_path, fn):
+    pools: list[int | None] = []
+
+    def new_pool(n):
+        pools.append(n)
+        return make_pool(n or 2)
+
+    jobs = [(str(tmp_path / "died"), x) for x in range(6)]
+    out = list(surviving_map(new_pool, fn, jobs, in_flight=3, died=lambda job: -job[1]))
+    again = 20 if fn is _die_once_on_two else -2  # run alone: its result, or died()'s
+    assert out == [0, 10, again, 30, 40, 50]
+    # the unfinished jobs ran again alone, one pool each; the rest in one fresh pool
+    assert pools[0] is None and pools[-1] is None and pools.count(None) == 2
+    assert 1 <= pools.count(1) <= 3

@@ -25,7 +25,7 @@ from bpns.env.environment import Environment, perturbed
 from bpns.env.perturbations import NOMINAL, Perturbation, PerturbationError
 from bpns.env.registry import make_environment
 from bpns.env.worlds import NOMINAL_WORLD, WorldDistribution
-from bpns.pools import bounded_map, capped_workers, make_pool
+from bpns.pools import WORKER_DIED_ALONE, capped_workers, make_pool, surviving_map
 from bpns.structs import Demonstration, Task
 
 T = TypeVar("T")
@@ -93,8 +93,14 @@ def collect_attempts(
     if workers <= 1:
         yield from map(_attempt_one, jobs)
         return
-    with make_pool(workers) as pool:
-        yield from bounded_map(pool, _attempt_one, jobs, in_flight=4 * workers)
+    yield from surviving_map(
+        lambda k: make_pool(k or workers), _attempt_one, jobs, 4 * workers, _worker_died
+    )
+
+
+def _worker_died(job: DemoJob) -> tuple[int, DemoAttempt]:
+    """Task ``job.index``'s attempt when its worker died, also when it ran alone."""
+    return job.index, DemoAttempt(None, 0, error=f"WorkerDiedError: {WORKER_DIED_ALONE}")
 
 
 def collect_demonstrations(

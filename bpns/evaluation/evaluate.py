@@ -13,11 +13,13 @@ picklable :class:`EvalSpec` (predicates are code and need not pickle).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 import statistics
 import time
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -36,7 +38,7 @@ from bpns.evaluation.intervals import wilson_interval
 from bpns.execution.failures import FailureReason
 from bpns.execution.rollouts import Event, Rollout
 from bpns.planning.config import PlanningConfig
-from bpns.pools import WorkerDiedError, make_pool, pool_map, result_of, submit
+from bpns.pools import make_pool, surviving_map
 from bpns.structs import Task
 
 
@@ -396,10 +398,11 @@ def run_tasks(spec: EvalSpec, indices: Sequence[int], workers: int = 1) -> Itera
     """Yield one outcome per task index, in order. ``workers`` > 1 uses a process pool.
 
     A worker that dies (the kernel's out-of-memory killer, a crash in native code, a
-    stray ``kill``) costs no other task: the pool breaks, the first task not yet returned
-    runs again alone in a fresh worker and is a ``worker_died`` failure only if that one
-    dies too; the remaining tasks go on in a fresh pool. Each task's outcome depends on
-    its index alone, so a task run again gives what it would have given."""
+    stray ``kill``) costs no other task: the tasks unfinished when its pool broke run
+    again, each alone in a fresh worker, and one is a ``worker_died`` failure only if
+    that worker dies too; the remaining tasks go on in a fresh pool
+    (:func:`bpns.pools.surviving_map`). Each task's outcome depends on its index alone,
+    so a task run again gives what it would have given."""
     if workers <= 1 or len(indices) <= 1:
         _init_worker(spec)
         try:
@@ -407,45 +410,32 @@ def run_tasks(spec: EvalSpec, indices: Sequence[int], workers: int = 1) -> Itera
         finally:
             _WORKER.clear()
         return
-    pending = list(indices)
-    while pending:
-        try:
-            with make_pool(min(workers, len(pending)), _init_worker, (spec,)) as pool:
-                for outcome in pool_map(pool, _run_index, list(pending), name=_job):
-                    pending.pop(0)
-                    yield outcome
-            return
-        except WorkerDiedError:
-            pass
-        yield _run_alone(spec, pending.pop(0))
+
+    def new_pool(n: int | None) -> Executor:
+        return make_pool(n or min(workers, len(indices)), _init_worker, (spec,))
+
+    yield from surviving_map(
+        new_pool, _run_index, indices, 2 * workers, functools.partial(_worker_died, spec)
+    )
 
 
-def _job(index: int) -> str:
-    return f"eval task {index}"
-
-
-def _run_alone(spec: EvalSpec, index: int) -> TaskOutcome:
-    """Task ``index`` in a worker of its own; its worker dying is the task's failure."""
-    start = time.monotonic()
-    try:
-        with make_pool(1, _init_worker, (spec,)) as pool:
-            return result_of(submit(pool, _run_index, index, _job(index)), _job(index))
-    except WorkerDiedError:
-        base = eval_environment(make_environment(spec.env_name), spec.eval_set)
-        return TaskOutcome(
-            index=index,
-            solved=False,
-            seconds=time.monotonic() - start,
-            reason=FailureReason.WORKER_DIED,
-            num_actions=0,
-            nodes_created=0,
-            abstract_plans=0,
-            samples=0,
-            sim_steps=0,
-            validated=None,
-            actions=np.zeros((0, np.asarray(base.action_low).size)),
-            world=spec.worlds.draw(index),
-        )
+def _worker_died(spec: EvalSpec, index: int) -> TaskOutcome:
+    """Task ``index``'s outcome when its worker died, also when it ran alone."""
+    base = eval_environment(make_environment(spec.env_name), spec.eval_set)
+    return TaskOutcome(
+        index=index,
+        solved=False,
+        seconds=0.0,
+        reason=FailureReason.WORKER_DIED,
+        num_actions=0,
+        nodes_created=0,
+        abstract_plans=0,
+        samples=0,
+        sim_steps=0,
+        validated=None,
+        actions=np.zeros((0, np.asarray(base.action_low).size)),
+        world=spec.worlds.draw(index),
+    )
 
 
 def evaluate(

@@ -49,7 +49,7 @@ from bpns.learning.partition import partition_segments
 from bpns.learning.pipeline import LearnedSkills, policy_seed
 from bpns.learning.policies import LearnedPolicy, ScopeDims, train_policy
 from bpns.learning.sharing import shared_data
-from bpns.pools import bounded_map, make_pool
+from bpns.pools import make_pool, surviving_map
 from bpns.structs import Object, Segment, Skill, State
 
 KEEP = ("best", "last")  # which policies corrections keep (CorrectionConfig.keep)
@@ -436,8 +436,14 @@ def collect_corrections(
     if workers <= 1:
         yield from (run_rollout(job, env) for job in jobs)
         return
-    with make_pool(workers) as pool:
-        yield from bounded_map(pool, run_rollout, jobs, in_flight=4 * workers)
+    yield from surviving_map(
+        lambda k: make_pool(k or workers), run_rollout, jobs, 4 * workers, _worker_died
+    )
+
+
+def _worker_died(job: RolloutJob) -> tuple[list[Correction], RolloutSummary]:
+    """A rollout whose worker died, also when it ran alone: no segment counted done."""
+    return [], RolloutSummary(0, len(job.steps), "worker_died", 0)
 
 
 DemoStates = Callable[[int], Sequence[State]]  # demonstration i's states, with simulator
