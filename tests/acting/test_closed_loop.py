@@ -439,3 +439,13 @@ def test_a_skill_stopped_midway_is_finished_when_no_operator_leads_on_from_there
     )
     assert [s.operator for s in solution.rollout.steps] == ["TurnOn", "TurnOn"]
     assert plan_reaches_goal(StallsHalfway(1, stuck=3), task, solution.actions)
+
+
+def test_the_eval_command_turns_resuming_off_with_no_resume():
+    from bpns.cli import build_parser
+    from bpns.cli.eval import world_settings
+
+    parser = build_parser()
+    _, _, default = world_settings(parser.parse_args(["eval", "--env", "cover"]))
+    _, _, off = world_settings(parser.parse_args(["eval", "--env", "cover", "--no-resume"]))
+    assert default.resume_stopped and not off.resume_stopped
