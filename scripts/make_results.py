@@ -276,7 +276,10 @@ def robustness_sections() -> list[str]:
             "the one with corrections were measured before a perturbed world's mass "
             "stopped moving the angle its latch opens at (commit fd5058f); sweeps "
             "measured since give the agent's time apart from the world's (\"Agent time "
-            'vs nominal", docs/WORLDS.md).\n',
+            'vs nominal", docs/WORLDS.md). The section of `doors_v2` was measured after '
+            "the closed loop learned to finish a skill the world stopped midway and Doors' "
+            "MoveToDoor to keep descending onto the handle through a wobble (commits "
+            "a55465b, e2e6ee0; new demonstrations: docs/WORLDS.md).\n",
         )
     return out
 
