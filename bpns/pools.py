@@ -221,18 +221,23 @@ def surviving_map(
         pending: collections.deque[list[Any]] = collections.deque()  # [item, future]
         try:
             with new_pool(None) as pool:
-                while True:
-                    while len(pending) < max(1, in_flight):
-                        item = next(rest, _END)
-                        if item is _END:
-                            break
-                        pending.append([item, None])
-                        pending[-1][1] = submit(pool, fn, item)
-                    if not pending:
-                        return
-                    out = result_of(pending[0][1])
-                    pending.popleft()
-                    yield out
+                try:
+                    while True:
+                        while len(pending) < max(1, in_flight):
+                            item = next(rest, _END)
+                            if item is _END:
+                                break
+                            pending.append([item, None])
+                            pending[-1][1] = submit(pool, fn, item)
+                        if not pending:
+                            return
+                        out = result_of(pending[0][1])
+                        pending.popleft()
+                        yield out
+                finally:  # a consumer that stops early (Ctrl-C) waits for no queued job
+                    for _, future in pending:
+                        if future is not None:
+                            future.cancel()
         except WorkerDiedError:
             unfinished = [item for item, _ in pending]
         for item in unfinished:  # which one's worker died is unknown: each alone, in turn
