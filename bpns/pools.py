@@ -38,7 +38,12 @@ WATCHDOG_SECONDS = 1.0
 
 
 class WorkerDiedError(BpnsError, RuntimeError):
-    """A worker process ended abruptly, taking its job with it."""
+    """A worker process ended abruptly, taking its job with it. ``unfinished``: the
+    items :func:`bounded_map` had submitted and not yet yielded, in order."""
+
+    def __init__(self, message: str, unfinished: tuple[Any, ...] = ()) -> None:
+        super().__init__(message)
+        self.unfinished = unfinished
 
 
 WORKER_DIED = (
@@ -186,19 +191,34 @@ def bounded_map(
     pool: Executor, fn: Callable[[T], R], items: Iterable[T], in_flight: int
 ) -> Iterator[R]:
     """``map(fn, items)`` on ``pool`` in order, with at most ``in_flight`` jobs submitted
-    and not yet yielded: ``items`` is consumed lazily."""
-    pending: collections.deque[Future[R]] = collections.deque()
-    iterator = iter(items)
+    and not yet yielded: ``items`` is consumed lazily. A dead worker is a
+    :class:`WorkerDiedError` whose ``unfinished`` are the items taken from ``items`` and
+    not yielded."""
+    pending: collections.deque[tuple[T, Future[R]]] = collections.deque()
     try:
-        for item in iterator:
-            pending.append(submit(pool, fn, item))
+        for item in items:
+            try:
+                pending.append((item, submit(pool, fn, item)))
+            except WorkerDiedError as err:
+                err.unfinished = (*(i for i, _ in pending), item)
+                raise
             if len(pending) >= max(1, in_flight):
-                yield result_of(pending.popleft())
+                yield _first_result(pending)
         while pending:
-            yield result_of(pending.popleft())
-    finally:
-        for future in pending:
+            yield _first_result(pending)
+    finally:  # a consumer that stops early (Ctrl-C) waits for no queued job
+        for _, future in pending:
             future.cancel()
+
+
+def _first_result(pending: collections.deque[tuple[T, Future[R]]]) -> R:
+    try:
+        out = result_of(pending[0][1])
+    except WorkerDiedError as err:
+        err.unfinished = tuple(i for i, _ in pending)
+        raise
+    pending.popleft()
+    return out
 
 
 def surviving_map(
@@ -216,35 +236,16 @@ def surviving_map(
     dies too; the rest of ``items`` go on in a fresh pool. For jobs whose result depends
     on the item alone (a task index and its seeds), a job run again gives what it would
     have given. A job that kills every worker it runs in breaks one pool at most."""
-    rest = iter(items)
+    rest = iter(items)  # shared by every pool: each takes up where the last stopped
     while True:
-        pending: collections.deque[list[Any]] = collections.deque()  # [item, future]
         try:
             with new_pool(None) as pool:
-                try:
-                    while True:
-                        while len(pending) < max(1, in_flight):
-                            item = next(rest, _END)
-                            if item is _END:
-                                break
-                            pending.append([item, None])
-                            pending[-1][1] = submit(pool, fn, item)
-                        if not pending:
-                            return
-                        out = result_of(pending[0][1])
-                        pending.popleft()
-                        yield out
-                finally:  # a consumer that stops early (Ctrl-C) waits for no queued job
-                    for _, future in pending:
-                        if future is not None:
-                            future.cancel()
-        except WorkerDiedError:
-            unfinished = [item for item, _ in pending]
+                yield from bounded_map(pool, fn, rest, in_flight)
+            return
+        except WorkerDiedError as err:
+            unfinished = err.unfinished
         for item in unfinished:  # which one's worker died is unknown: each alone, in turn
             yield _alone(new_pool, fn, item, died)
-
-
-_END: Any = object()
 
 
 def _alone(
