@@ -158,7 +158,8 @@ class ClosedLoopPlanner:
         if not result.success:
             if result.furthest is not None and stats.furthest is None:
                 stats.furthest = result.furthest
-            if self.explain is not None and (stats.explanation is None or resume_from):
+            resumed = resume_from is not None
+            if self.explain is not None and (stats.explanation is None or resumed):
                 stats.explanation = self.explain(s)  # a resumption's attempts say more
             return result.reason or FailureReason.REFINEMENT_FAILED
         skeleton = result.skeleton
@@ -281,10 +282,10 @@ class ClosedLoopPlanner:
             else:
                 problem = self._execute(world, steps[i], needed[i + 1])
                 executed.append(str(steps[i].op))
-                seen |= world.atoms()
-            if problem is None:
-                missing = needed[i + 1] - world.atoms()
-                if missing:
+                atoms = world.atoms()
+                seen |= atoms
+                missing = needed[i + 1] - atoms
+                if problem is None and missing:
                     problem = ("diverged", f"expected {atoms_text(missing)} did not hold")
             if problem is None:
                 i += 1

@@ -367,7 +367,7 @@ def run_rollout(
     task = world.task(origin.index, origin.seed, True)
     demonstrator = None
     oracle: tuple[Skill, ...] = ()
-    if job.measure_only:
+    if job.measure_only:  # nobody labels
         pass
     elif config.expert == "demonstrator":
         demonstrator = env.demonstrator(task, np.random.default_rng([origin.seed, origin.index]))

@@ -177,14 +177,15 @@ class _Skeletons:
     ) -> None:
         t0 = time.monotonic()
         try:
+            operators = list(by_operator)
             if resume_from is None:
-                reach = init_atoms
-            else:  # operators a stopped skill may finish need atoms no longer true
-                reach = init_atoms | resume_from
-            self.problem = ground(list(by_operator), task.objects, reach, task.goal, deadline)
-            if reach is not init_atoms:
+                self.problem = ground(operators, task.objects, init_atoms, task.goal, deadline)
+            else:  # a stopped skill's operator needs atoms no longer true to be grounded
+                reached = ground(
+                    operators, task.objects, init_atoms | resume_from, task.goal, deadline
+                )
                 self.problem = GroundProblem.from_ground_operators(
-                    self.problem.operators, init_atoms, task.goal
+                    reached.operators, init_atoms, task.goal
                 )
             self.heuristic = (
                 None if config.search == "ucs" else make_heuristic(config.heuristic, self.problem)
