@@ -56,6 +56,13 @@ class ExecutionConfig:
                       (a hand that reached the doorway but not the handle) leaves a state
                       no demonstration shows, from which the learned operators offer no
                       way on; refinement in the model checks that the skill finishes.
+    back_off:         when a replan finds no plan at all, run the environment's declared
+                      back-off motion in the world (``Capabilities.back_off``: e.g. the
+                      hand raised and returned to where the task began, the grip kept)
+                      and plan once more from there, once per divergence. A failed skill
+                      can leave the robot where no learned skill starts well (the hand
+                      on the table beside a dropped stick); demonstrations start from
+                      poses like the one it backs off to.
     slow_from:        when ``world_speed`` takes effect: from the task's ``start``, or from
                       the first ``deviation`` (a skill boundary where the world's features
                       left the model's prediction by more than ``rerefine_atol``, or a
@@ -72,6 +79,7 @@ class ExecutionConfig:
     world_speed: float = 1.0
     slow_from: str = SLOW_FROM[0]
     resume_stopped: bool = True
+    back_off: bool = True
 
     def __post_init__(self) -> None:
         if isinstance(self.max_replans, bool) or not isinstance(self.max_replans, int):

@@ -8,12 +8,13 @@ fails in the world, or loses such an atom while it runs, or a boundary that lack
 a divergence. A divergence is repaired from the world's current state: first the rest of
 the same abstract plan, from the last step whose needed atoms hold (refinement only, no
 search), then a new bilevel plan, and when the abstract search finds none, a plan whose
-first step finishes a skill the world stopped midway (``ExecutionConfig.resume_stopped``);
-at most ``max_replans`` times, within the task's deadline. Where the world's features
-left the model's prediction by more than ``rerefine_atol`` at a boundary, the rest of the
-plan is checked again from where things really are: kept as it is when its subgoals
-still reach the goal in the model from there (one rollout per step), else refined again
-(new subgoals, same abstract plan).
+first step finishes a skill the world stopped midway (``ExecutionConfig.resume_stopped``),
+and when there is still none, the same again after the environment's back-off motion
+(``ExecutionConfig.back_off``); at most ``max_replans`` times, within the task's deadline.
+Where the world's features left the model's prediction by more than ``rerefine_atol`` at
+a boundary, the rest of the plan is checked again from where things really are: kept as
+it is when its subgoals still reach the goal in the model from there (one rollout per
+step), else refined again (new subgoals, same abstract plan).
 
 A step whose world start state is bit-identical to the model's, under the very same
 physics and at full speed (``world_speed`` 1), takes over the model's segment instead of
@@ -312,6 +313,15 @@ class ClosedLoopPlanner:
             if stats.replans > self.execution.max_replans:
                 return failed(FailureReason.REPLAN_BUDGET)
             repaired = self._repair(world, steps, needed, frozenset(seen), rng, deadline, stats)
+            if self._backs_off(world, repaired):
+                world.event(
+                    "backed_off",
+                    f"replan {stats.replans} found no plan ({repaired}) from "
+                    f"{{{atoms_text(world.atoms())}}}: backing off",
+                )
+                world.back_off()
+                seen |= world.atoms()
+                repaired = self._repair(world, steps, needed, frozenset(seen), rng, deadline, stats)
             if isinstance(repaired, FailureReason):
                 world.event(
                     "replan_failed",
@@ -356,6 +366,17 @@ class ClosedLoopPlanner:
                 f"{atoms_text(lost) or 'an atom'} stopped holding during {step.op}",
             )
         return ("skill_failed", f"{step.op} failed in the world: {reason}")
+
+    def _backs_off(self, world: WorldRun, repaired: list[PlannedStep] | FailureReason) -> bool:
+        """Back off before giving up? Only when no plan was found (not when time ran
+        out) and the environment declares a back-off (``ExecutionConfig.back_off``)."""
+        return (
+            isinstance(repaired, FailureReason)
+            and repaired in (FailureReason.REFINEMENT_FAILED, FailureReason.NO_ABSTRACT_PLAN)
+            and self.execution.back_off
+            and world.env.capabilities.back_off is not None
+            and world.used < world.task.horizon
+        )
 
     def _slow_down(self, world: WorldRun, why: str) -> None:
         """With ``slow_from="deviation"``: the first deviation slows every later skill."""

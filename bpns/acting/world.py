@@ -5,7 +5,9 @@
 control step the policy sees the world's observation), replays actions open loop, and
 keeps what happened: every action, one execution record per skill, and the monitor's
 events. Unlike refinement in the model, a failed execution is not undone: the world
-stays where the failed skill left it.
+stays where the failed skill left it. What the robot can do about that without a plan is
+the environment's back-off motion (:meth:`WorldRun.back_off`), recorded as a step named
+:data:`BACK_OFF`.
 """
 
 from __future__ import annotations
@@ -20,12 +22,16 @@ from bpns.env.environment import Environment
 from bpns.execution.executor import (
     CompletionTest,
     Executed,
+    ExecutionTimeout,
     RolloutConfig,
     SkillExecutor,
+    checked_action,
 )
 from bpns.execution.failures import NOT_EXECUTED, FailureReason
 from bpns.execution.rollouts import REACHED, Event, Rollout, rollout_of
 from bpns.structs import GroundAtom, GroundOperator, Skill, State, Task
+
+BACK_OFF = "BackOff"  # the step name of a back-off motion in rollouts and captions
 
 
 class WorldRun:
@@ -111,6 +117,44 @@ class WorldRun:
         """Take over a segment the model simulated from this very state under this very
         physics: the world would reproduce it bit for bit (``f`` is deterministic)."""
         self._advance(op, subgoal, actions, states, REACHED)
+
+    def back_off(self) -> bool:
+        """Run the environment's back-off motion (``Capabilities.back_off``) from here
+        towards the task's start, within a skill's step limit and the task's horizon;
+        whether it got there. Its policy sees the world's observation, as a skill's does.
+        """
+        policy = self.env.capabilities.back_off
+        if policy is None:
+            return False
+        executor = self.executor
+        actions: list[np.ndarray] = []
+        states: list[State] = []
+        state, outcome = self.state, FailureReason.SKILL_HORIZON
+        t0 = time.perf_counter()
+        try:
+            for _ in range(executor.config.max_skill_horizon):
+                if executor.deadline is not None and time.monotonic() >= executor.deadline:
+                    raise ExecutionTimeout
+                if self.used + len(actions) >= self.task.horizon:
+                    outcome = FailureReason.TASK_HORIZON
+                    break
+                raw = policy(self.env, executor.observe(state), self.task.init)
+                if raw is None:
+                    outcome = None
+                    break
+                action = checked_action(raw, executor.low, executor.high)
+                if isinstance(action, FailureReason):
+                    outcome = action
+                    break
+                state = self.env.simulate(state, action)
+                actions.append(action)
+                states.append(state)
+        finally:
+            self.world_seconds += time.perf_counter() - t0
+            self.world_steps += len(actions)
+            executor.sim_steps += len(actions)
+        self._advance(BACK_OFF, None, actions, states, REACHED if outcome is None else str(outcome))
+        return outcome is None
 
     def replay(self, actions: np.ndarray) -> None:
         """Apply ``actions`` one after the other, whatever happens (open loop)."""

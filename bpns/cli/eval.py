@@ -299,6 +299,14 @@ def add_world_arguments(p: argparse.ArgumentParser) -> None:
         help="closed loop: when a replan finds no abstract plan, fail, instead of planning "
         "again with a first step that finishes a skill the world stopped midway",
     )
+    p.add_argument(
+        "--no-back-off",
+        dest="back_off",
+        action="store_false",
+        help="closed loop: when a replan finds no plan, fail, instead of running the "
+        "environment's back-off motion (e.g. the hand raised and returned to its start) "
+        "and planning once more",
+    )
 
 
 def world_settings(
@@ -328,6 +336,7 @@ def world_settings(
         world_speed=args.world_speed,
         slow_from=args.slow_from,
         resume_stopped=args.resume_stopped,
+        back_off=args.back_off,
     )
     return worlds, model, execution
 

@@ -68,6 +68,14 @@ class Capabilities:
                        wrist turns, a base's offsets; not the fingers): what a world-side
                        speed (``ExecutionConfig.world_speed``) scales; None: the
                        environment's skills cannot be slowed.
+    back_off:          ``back_off(env, seen, start)``: a recovery motion, one action per
+                       observed state ``seen`` (None once done), that takes the robot
+                       back towards ``start`` (the task's initial state), e.g. the hand
+                       raised straight up, then to where it began, the grip kept. The
+                       closed loop runs it when a replan finds no plan from where a
+                       failed skill left the robot (a hand on the table beside a dropped
+                       stick, hovering where no demonstration went), and plans again from
+                       there: demonstrations start from such poses. None: no back-off.
 
     ``observe`` takes the environment because one declaration (a class attribute) serves
     every instance, including the perturbed copies ``perturbed`` returns.
@@ -86,6 +94,7 @@ class Capabilities:
     object_limits: Mapping[str, tuple[int, int]] = field(default_factory=dict)
     with_objects: Callable[[Environment, ObjectCounts], Environment] | None = None
     motion_dims: tuple[int, ...] | None = None
+    back_off: Callable[[Environment, State, State], np.ndarray | None] | None = None
 
     def __post_init__(self) -> None:  # read-only: one declaration shared by every instance
         if not 0.0 <= self.demo_noise < float("inf"):

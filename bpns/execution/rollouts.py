@@ -90,18 +90,23 @@ class Rollout:
         return sum(s.outcome == REACHED for s in self.steps), len(self.actions)
 
 
-Executed = tuple[GroundOperator, "np.ndarray | None", Sequence[np.ndarray], str]
+# a ground operator's execution, or a named motion that is no skill (e.g. a back-off)
+Executed = tuple["GroundOperator | str", "np.ndarray | None", Sequence[np.ndarray], str]
 
 
 def rollout_of(
     executions: Sequence[Executed], action_dim: int, events: Sequence[Event] = ()
 ) -> Rollout:
-    """A rollout from (ground operator, subgoal, actions, outcome) per execution."""
+    """A rollout from (ground operator or motion name, subgoal, actions, outcome) per
+    execution."""
     steps, actions = [], []
     for op, subgoal, acts, outcome in executions:
         sub = None if subgoal is None else tuple(float(x) for x in np.ravel(subgoal))
-        objects = tuple(o.name for o in op.objects)
-        steps.append(PlanStep(op.operator.name, objects, sub, len(actions), outcome))
+        if isinstance(op, str):
+            name, objects = op, ()
+        else:
+            name, objects = op.operator.name, tuple(o.name for o in op.objects)
+        steps.append(PlanStep(name, objects, sub, len(actions), outcome))
         actions.extend(acts)
     flat = np.array(actions, dtype=np.float64).reshape(len(actions), action_dim)
     return Rollout(flat, tuple(steps), tuple(events))

@@ -193,6 +193,44 @@ def open_first(state: State, robot: Object, action: np.ndarray) -> np.ndarray:
     return action
 
 
+@dataclass(frozen=True)
+class BackOffToStart:
+    """A back-off (``Capabilities.back_off``): open the fingers, take the hand straight up
+    to ``height``, then back to where it was when the task began; None once there.
+
+    The recovery a closed loop runs when no plan starts from where a failed skill left
+    the robot: a hand on the table beside the stick it dropped (still half closed on it),
+    or hovering where no demonstration went. Letting go first leaves a dropped object
+    where it lies, to be grasped again by a plan; rising to the travel ``height`` (m,
+    world z) before moving sideways sweeps nothing aside; the task's start pose with open
+    fingers is where every demonstration began, so the skills a plan starts with know it.
+
+    ``wait_open``: hold the hand still until the fingers are :data:`OPEN_FINGERS` open,
+    and count the back-off done only then; False where the fingers may not open
+    everywhere (Cover's allowed regions): they are told to open all the way and open
+    where they may. "There" is every axis of the hand within ``tol`` (m; default 2 cm,
+    four times the `hard` worlds' observation noise) of its start. For a Panda whose
+    robot object (type ``robot``) has the hand's (x, y, z, fingers) first and whose
+    action is ``(dx, dy, dz, grip)`` (+1 opens).
+    """
+
+    height: float
+    wait_open: bool = True
+    tol: float = 0.02
+
+    def __call__(self, env: object, seen: State, start: State) -> np.ndarray | None:
+        robot = next(o for o in seen.data if o.type.name == "robot")
+        now, goal = hand(seen, robot), hand(start, robot)
+        error = goal - now
+        if self.wait_open and fingers(seen, robot) < OPEN_FINGERS:
+            return np.array([0.0, 0.0, 0.0, 1.0])  # let go where it is
+        if np.all(np.abs(error) <= self.tol):
+            return None
+        if now[2] < self.height - self.tol and np.max(np.abs(error[:2])) > self.tol:
+            return np.array([0.0, 0.0, GAIN * (self.height - now[2]), 1.0])
+        return np.array([*(GAIN * error), 1.0])
+
+
 def grasp_action(
     state: State, robot: Object, grasp_xyz: np.ndarray, funnel: Funnel, close_tol: float = 0.006
 ) -> np.ndarray:

@@ -14,6 +14,7 @@ import pytest
 from bpns.acting.config import ExecutionConfig, ExecutionConfigError
 from bpns.acting.monitor import kept_atoms, necessary_atoms, repair_point
 from bpns.acting.replanning import ClosedLoopPlanner, ClosedLoopStats, world_run
+from bpns.acting.world import BACK_OFF
 from bpns.approaches.bilevel import BilevelPlanning
 from bpns.evaluation.evaluate import plan_reaches_goal, solve_task
 from bpns.execution.executor import ExecutionTimeout, NotSlowableError, RolloutConfig
@@ -449,3 +450,80 @@ def test_the_eval_command_turns_resuming_off_with_no_resume():
     _, _, default = world_settings(parser.parse_args(["eval", "--env", "cover"]))
     _, _, off = world_settings(parser.parse_args(["eval", "--env", "cover", "--no-resume"]))
     assert default.resume_stopped and not off.resume_stopped
+
+
+def toy_back_off(env, seen: State, start: State) -> np.ndarray | None:
+    """Back along the line to where the robot began, the grip kept (0: no grip command)."""
+    robot = next(o for o in start.objects if o.type == toy.ROBOT)
+    x, home = seen.get(robot, "x"), start.get(robot, "x")
+    return None if abs(x - home) <= toy.TOL else np.array([toy._toward(x, home), 0.0])
+
+
+class SlipOnceBacksOff(SlipOnce):
+    capabilities = dataclasses.replace(SlipOnce.capabilities, back_off=toy_back_off)
+
+
+class PickFromHomeOnly(toy.PickSampler):
+    """A pick learned from demonstrations that all began at home: from anywhere else its
+    grip points lie off the track, so no pick refines there."""
+
+    def __call__(self, state, objs, rng):
+        g = super().__call__(state, objs, rng)
+        if state.get(objs[0], "x") > 0.5:
+            g[0] = -100.0
+        return g
+
+
+def test_a_replan_with_no_plan_from_where_the_skill_failed_backs_off_and_plans_again():
+    # the stick slips at x = 2.5; the pick only refines from home, so no plan starts where
+    # the robot stands; backing off to the start lets the replan pick the stick again
+    model = toy.ToyStickButton()
+    skills = [
+        dataclasses.replace(s, sampler=PickFromHomeOnly(good=0.5))
+        if s.operator is toy.PICK_STICK
+        else s
+        for s in toy.skills()
+    ]
+    planner = BilevelPlanning(model, skills, CONFIG)
+    task = _far_button_task()
+
+    def solve(execution: ExecutionConfig):
+        world = SlipOnceBacksOff()
+        return planner.solve_in_world(task, model, world, np.random.default_rng(0), 20.0, execution)
+
+    strict = solve(ExecutionConfig(back_off=False))
+    assert not strict.success and strict.reason is FailureReason.REFINEMENT_FAILED
+    solution = solve(ExecutionConfig())
+    assert solution.success and solution.replans == 1
+    kinds = [e.kind for e in solution.rollout.events]
+    assert kinds == ["atom_lost", "backed_off", "replanned"]
+    backed = solution.rollout.events[1].text
+    assert backed.startswith("replan 1 found no plan (refinement_failed) from {HandEmpty(robot)")
+    names = [(s.operator, s.outcome) for s in solution.rollout.steps]
+    assert names[2] == (BACK_OFF, "reached") and names[3][0] == "PickStick"
+    assert plan_reaches_goal(SlipOnceBacksOff(), task, solution.actions)
+
+
+def test_an_environment_without_a_back_off_fails_as_before():
+    model, world = toy.ToyStickButton(), SlipOnce()
+    skills = [
+        dataclasses.replace(s, sampler=PickFromHomeOnly(good=0.5))
+        if s.operator is toy.PICK_STICK
+        else s
+        for s in toy.skills()
+    ]
+    solution = BilevelPlanning(model, skills, CONFIG).solve_in_world(
+        _far_button_task(), model, world, np.random.default_rng(0), 20.0, ExecutionConfig()
+    )
+    assert not solution.success and solution.reason is FailureReason.REFINEMENT_FAILED
+    assert "backed_off" not in [e.kind for e in solution.rollout.events]
+
+
+def test_the_eval_command_turns_backing_off_off_with_no_back_off():
+    from bpns.cli import build_parser
+    from bpns.cli.eval import world_settings
+
+    parser = build_parser()
+    _, _, default = world_settings(parser.parse_args(["eval", "--env", "cover"]))
+    _, _, off = world_settings(parser.parse_args(["eval", "--env", "cover", "--no-back-off"]))
+    assert default.back_off and not off.back_off

@@ -263,3 +263,33 @@ def test_oracle_skills_solve_an_eval_task_needing_hand_and_stick_through_the_pla
     for action in result.actions:  # f is exact: the returned actions solve the task
         state = env.simulate(state, action)
     assert task.goal <= abstract(state, env.goal_predicates)
+
+
+def test_the_back_off_lets_go_of_the_stick_and_returns_the_hand_to_its_start(env):
+    # a closed loop's last resort: the stick held up in the air falls where the hand let
+    # go, and the hand ends where the task began, open (what every demonstration starts
+    # from); the motion runs in physics through WorldRun and replays exactly
+    from bpns.acting.world import BACK_OFF, WorldRun
+    from bpns.execution.executor import RolloutConfig
+    from mj_envs.oracles.motions import OPEN_FINGERS
+
+    task = env.task(0, 0, True)
+    robot, stick = _obj(task.init, "robot"), _obj(task.init, "stick")
+    held = _grasp_attempt(env, task, offset=GRASP_MIN + 0.02)[-1]
+    assert GRASPED.holds(held, (robot, stick)) and held.get(stick, "z") > SAFE_Z - 0.03
+
+    run = WorldRun(env, task, RolloutConfig(), None)
+    run.state = held  # where a failed skill left the world
+    assert run.back_off()
+    end = run.state
+    assert not GRASPED.holds(end, (robot, stick))
+    assert end.get(stick, "z") < STICK_HEIGHT  # fell back onto the table
+    assert end.get(robot, "fingers") >= OPEN_FINGERS - 0.002
+    start_hand = task.init.data[robot][:3]
+    assert np.all(np.abs(end.data[robot][:3] - start_hand) <= 0.02)
+    (step,) = run.rollout().steps
+    assert (step.operator, step.outcome) == (BACK_OFF, "reached")
+    s = held
+    for action in run.action_array():
+        s = env.simulate(s, action)
+    assert np.array_equal(s.sim.flat, end.sim.flat)

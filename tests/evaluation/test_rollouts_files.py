@@ -12,6 +12,7 @@ import imageio.v2 as imageio
 import numpy as np
 import pytest
 
+from bpns.acting.world import BACK_OFF
 from bpns.cli import main
 from bpns.env.perturbations import Perturbation
 from bpns.evaluation.evaluate import EvalSpec, evaluate
@@ -27,7 +28,8 @@ SLIPPERY = Perturbation(friction_scale=0.0)
 @pytest.fixture(scope="module")
 def failed_report(cover_env):
     """The oracle on one Cover task with frictionless pads: the pick succeeds (the pads
-    touch), the place cannot (the block stays on the table)."""
+    touch), the place cannot (the block stays on the table); the closed loop finds no
+    plan from there, backs off and finds none again."""
     config = dataclasses.replace(
         planning_config_for(cover_env, timeout=60.0), n_abstract=1, n_samples=1
     )
@@ -53,7 +55,7 @@ def test_a_failed_bilevel_task_keeps_its_furthest_attempt(failed_report):
     (o,) = failed_report.outcomes
     assert not o.solved and o.reason == "refinement_failed"
     steps = o.rollout.steps
-    assert [s.operator for s in steps] == ["Pick", "Place"]
+    assert [s.operator for s in steps] == ["Pick", "Place", BACK_OFF]
     assert steps[0].outcome == REACHED and steps[1].outcome != REACHED
     assert steps[0].start == 0 and steps[1].start > 0  # the place starts after the pick
     assert len(o.rollout.actions) > steps[1].start  # the failed place's own actions too

@@ -12,6 +12,7 @@ from bpns.env.object_counts import ObjectCounts
 from bpns.structs import Object, Predicate, State, Task, Type
 from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed, with_objects
 from mj_envs.domains.cover import scene
+from mj_envs.domains.cover.behaviours import SAFE_Z
 from mj_envs.domains.cover.demonstrator import CoverDemonstrator
 from mj_envs.domains.cover.rules import (
     BLOCK,
@@ -29,6 +30,7 @@ from mj_envs.domains.cover.rules import (
     TARGET,
 )
 from mj_envs.domains.cover.skills import oracle_skills
+from mj_envs.oracles.motions import BackOffToStart
 from mj_envs.robots.panda import hand_xyz_fingers, pads_touching, panda_ids
 from mj_envs.world import World
 
@@ -52,6 +54,7 @@ class CoverEnv(MujocoEnv):
         object_limits={"block": BLOCK_LIMITS},
         with_objects=with_objects,
         motion_dims=(0, 1, 2),  # hand translation; not the fingers
+        back_off=BackOffToStart(SAFE_Z, wait_open=False),  # they open only over regions
     )
 
     @property

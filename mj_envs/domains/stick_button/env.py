@@ -13,6 +13,7 @@ from bpns.env.object_counts import ObjectCounts
 from bpns.structs import Object, Predicate, Task, Type
 from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed, with_objects
 from mj_envs.domains.stick_button import scene
+from mj_envs.domains.stick_button.behaviours import SAFE_Z
 from mj_envs.domains.stick_button.demonstrator import StickButtonDemonstrator
 from mj_envs.domains.stick_button.rules import (
     ABOVE_NO_BUTTON,
@@ -33,6 +34,7 @@ from mj_envs.domains.stick_button.rules import (
     TIP_INSET,
 )
 from mj_envs.domains.stick_button.skills import oracle_skills
+from mj_envs.oracles.motions import BackOffToStart
 from mj_envs.parts import button as push_button
 from mj_envs.robots.panda import hand_xyz_fingers, pads_touching, panda_ids
 from mj_envs.world import World
@@ -59,6 +61,7 @@ class StickButtonEnv(MujocoEnv):
         object_limits={"button": BUTTON_LIMITS},
         with_objects=with_objects,
         motion_dims=(0, 1, 2),  # hand translation; not the fingers
+        back_off=BackOffToStart(SAFE_Z),  # open, up, back to the start pose
     )
     controller_config = CONTROLLER
 
