@@ -44,7 +44,8 @@ def configure(p: argparse.ArgumentParser) -> None:
         metavar="PRESET|NAME=VALUE",
         default=[],
         help="demonstrate each task in its own perturbed world, drawn per task as "
-        "`bpns eval --perturb` draws them (a preset: moderate, hard; or NAME=VALUE items); "
+        "`bpns eval --perturb` draws them, from --seed (a preset: moderate, hard; or "
+        "NAME=VALUE items); "
         "stored per demonstration, so replay stays exact (default: nominal physics)",
     )
     p.add_argument(
@@ -57,7 +58,7 @@ def configure(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     env = env_by_name(args.env)
     try:
-        worlds = parse_world(args.perturb)
+        worlds = parse_world(args.perturb).seeded(args.seed)  # other seeds, other worlds
         perturbed(env, worlds.draw(0))  # an environment without perturbations says so now
     except PerturbationError as err:
         raise UserError(f"--perturb: {err}") from None

@@ -230,7 +230,7 @@ def add_world_arguments(p: argparse.ArgumentParser) -> None:
         "with NAME one of mass_scale, friction_scale, gain_scale (arm kp), action_noise (std, "
         "fraction of the action range), obs_noise (std on the policies' features, m/rad), "
         "latency (control steps), seed; VALUE a number, a range LOW:HIGH or a set A,B,C, "
-        "drawn per task (docs/WORLDS.md)",
+        "drawn per task from --seed (or the seed=K given; docs/WORLDS.md)",
     )
     p.add_argument(
         "--model",

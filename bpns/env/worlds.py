@@ -4,6 +4,9 @@ A :class:`~bpns.env.perturbations.Perturbation` is one physics. Evaluation draws
 per task from a :class:`WorldDistribution`: each perturbation name is fixed, or drawn
 from a range or a set of values, from the distribution's seed and the task's index, so
 the same task always meets the same world (and the world is stored with its rollout).
+Unless the user gives one (``seed=K``), the seed is the task stream's (``bpns eval
+--seed``, a sweep's seed, ``bpns demos --seed``): other seeds, other worlds, so results
+checked on seeds never seen meet worlds never seen too.
 Scale factors (``*_scale``) are drawn log-uniformly (a factor and its inverse are
 equally likely), noises uniformly, latency uniformly from its set of control steps.
 
@@ -106,11 +109,12 @@ def _number(name: str, value: object) -> Number:
 @dataclass(frozen=True)
 class WorldDistribution:
     """Per-task worlds: each name in ``spreads`` fixed, ranged or chosen (the others
-    nominal). ``seed`` seeds both the draws and the worlds' noises; ``preset`` names the
-    preset it came from, if any (for labels)."""
+    nominal). ``seed`` seeds both the draws and the worlds' noises; None: the seed of the
+    task stream the worlds are drawn for (:meth:`seeded`; drawn as 0 until then).
+    ``preset`` names the preset it came from, if any (for labels)."""
 
     spreads: Mapping[str, Spread] | tuple[tuple[str, Spread], ...] = ()
-    seed: int = 0
+    seed: int | None = None
     preset: str | None = None
 
     def __post_init__(self) -> None:
@@ -118,8 +122,9 @@ class WorldDistribution:
         unknown = sorted(set(given) - set(NAMES) | ({"seed"} & set(given)))
         if unknown:
             raise PerturbationError(f"unknown perturbation {unknown[0]!r}; known: {_known()}")
-        if not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed < 0:
-            raise PerturbationError(f"seed must be a whole number >= 0, got {self.seed!r}")
+        seed = self.seed
+        if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool) or seed < 0):
+            raise PerturbationError(f"seed must be a whole number >= 0, got {seed!r}")
         for name, spread in given.items():
             _check_spread(name, spread)
         object.__setattr__(self, "spreads", tuple((n, given[n]) for n in NAMES if n in given))
@@ -137,10 +142,18 @@ class WorldDistribution:
     def nominal(self) -> bool:
         return self.fixed and self.draw(0).nominal
 
+    def seeded(self, stream_seed: int) -> WorldDistribution:
+        """These worlds drawn for the task stream of ``stream_seed``: its seed, unless the
+        user gave one. Nominal physics keeps seed 0 (there is nothing to draw)."""
+        if self.seed is not None:
+            return self
+        return dataclasses.replace(self, seed=stream_seed if self.spreads else 0)
+
     def draw(self, index: int) -> Perturbation:
         """The physics of task ``index`` (the same index always draws the same)."""
-        rng = np.random.default_rng([self.seed, 0x5EED, index])
-        values: dict[str, Number] = {"seed": self.seed}
+        seed = 0 if self.seed is None else self.seed
+        rng = np.random.default_rng([seed, 0x5EED, index])
+        values: dict[str, Number] = {"seed": seed}
         for name, spread in self.spreads:
             values[name] = spread.draw(name, rng)
         return Perturbation(**values)
@@ -173,7 +186,8 @@ class WorldDistribution:
         if not isinstance(d, dict) or not isinstance(d.get("spreads"), dict):
             raise PerturbationError("not a world distribution record: expected its spreads")
         spreads = {n: Spread.from_json(n, v) for n, v in d["spreads"].items()}
-        return cls(spreads, int(d.get("seed", 0)), d.get("preset"))
+        seed = d.get("seed", 0)  # records before per-stream seeds drew from seed 0
+        return cls(spreads, None if seed is None else int(seed), d.get("preset"))
 
     @classmethod
     def of(cls, p: Perturbation) -> WorldDistribution:

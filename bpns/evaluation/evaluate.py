@@ -60,6 +60,11 @@ class EvalSpec:
     execution: ExecutionConfig = CLOSED_LOOP  # closed loop with replanning, or open loop
     eval_set: EvalSet = PAPER_SET  # the eval distribution (named set, object counts)
 
+    def __post_init__(self) -> None:  # worlds drawn for this task stream unless seeded
+        p = self.perturbation
+        if isinstance(p, WorldDistribution):
+            object.__setattr__(self, "perturbation", p.seeded(self.task_seed))
+
     @property
     def worlds(self) -> WorldDistribution:
         p = self.perturbation

@@ -127,6 +127,8 @@ class Cell:
                 s["world"] = self.world
                 s["execution"] = self.execution or "closed-loop"
                 s["model"] = self.model
+            if self.world is not None:  # (absent: cells whose worlds all came from seed 0)
+                s["world_draws"] = "per-seed"
             if self.objects is not None:  # (absent: cells stored before keep matching)
                 s["objects"] = self.objects
             if self.corrections is not None:  # (absent when none, likewise)

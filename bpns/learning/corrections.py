@@ -106,7 +106,7 @@ class CorrectionConfig:
     def rollout_worlds(self) -> WorldDistribution:
         """``worlds`` with a stream of its own: task ``i`` of the evaluation, drawn with
         ``worlds``' seed, never meets the very world demonstration ``i`` was corrected in."""
-        seed = np.random.SeedSequence([self.worlds.seed, self.seed, _WORLD_STREAM])
+        seed = np.random.SeedSequence([self.worlds.seed or 0, self.seed, _WORLD_STREAM])
         return dataclasses.replace(self.worlds, seed=int(seed.generate_state(1)[0]))
 
     def to_json(self) -> dict[str, object]:

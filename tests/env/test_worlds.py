@@ -95,3 +95,33 @@ def test_wilson_intervals_stay_honest_at_zero_and_all():
     assert low == 0.0 and 0.27 < high < 0.28
     low, high = wilson_interval(46, 50)
     assert low < 0.92 < high
+
+
+def test_each_eval_seed_meets_worlds_of_its_own_unless_the_user_fixes_the_seed():
+    # results checked on seeds never seen must meet worlds never seen: the draws follow
+    # the task stream's seed; `seed=K` pins them (how runs before per-seed draws drew: 0)
+    from bpns.evaluation.evaluate import EvalSpec
+    from bpns.planning.config import PlanningConfig
+
+    def drawn(items: list[str], task_seed: int) -> list[Perturbation]:
+        spec = EvalSpec(
+            "cover",
+            "oracle",
+            PlanningConfig(),
+            task_seed=task_seed,
+            perturbation=parse_world(items),
+        )
+        return [spec.worlds.draw(i) for i in range(5)]
+
+    a, b = drawn(["hard"], 101), drawn(["hard"], 102)
+    assert all(x != y for x, y in zip(a, b, strict=True))
+    assert drawn(["hard"], 101) == a  # the same seed, the same worlds
+    assert {p.seed for p in a} == {101}  # the noises follow it too
+    pinned = drawn(["hard", "seed=0"], 101)
+    assert pinned == drawn(["hard", "seed=0"], 102) == [PRESETS["hard"].draw(i) for i in range(5)]
+    assert drawn([], 101)[0].nominal  # nominal physics stays the nominal perturbation
+    fixed = parse_world(["latency=2"]).seeded(7)
+    assert fixed.draw(0) == Perturbation(latency=2, seed=7)
+    assert WorldDistribution.from_json(parse_world(["hard"]).to_json()).seed is None
+    old_record = '{"spreads": {"latency": 1}, "preset": null}'
+    assert WorldDistribution.from_json(old_record).seed == 0  # stored before: seed 0
