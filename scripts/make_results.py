@@ -279,7 +279,12 @@ def robustness_sections() -> list[str]:
             'vs nominal", docs/WORLDS.md). The section of `doors_v2` was measured after '
             "the closed loop learned to finish a skill the world stopped midway and Doors' "
             "MoveToDoor to keep descending onto the handle through a wobble (commits "
-            "a55465b, e2e6ee0; new demonstrations: docs/WORLDS.md).\n",
+            "a55465b, e2e6ee0; new demonstrations: docs/WORLDS.md). Until commit 1750b33 "
+            "every seed drew task i's world from seed 0 (the same worlds on every seed); "
+            "the sections measured so reproduce with `seed=0` in each world "
+            "(`--worlds nominal 'moderate seed=0' 'hard seed=0'`). The sections named "
+            "`*_v3` draw each seed's worlds from that seed and back off where no plan "
+            "starts from the world's state (commits 1750b33, a000817).\n",
         )
     return out
 
