@@ -58,7 +58,7 @@ class ExecutionConfig:
                       way on; refinement in the model checks that the skill finishes.
     back_off:         when a replan finds no plan at all, run the environment's declared
                       back-off motion in the world (``Capabilities.back_off``: e.g. the
-                      hand raised and returned to where the task began, the grip kept)
+                      fingers opened, the hand raised and returned to where the task began)
                       and plan once more from there, once per divergence. A failed skill
                       can leave the robot where no learned skill starts well (the hand
                       on the table beside a dropped stick); demonstrations start from

@@ -70,8 +70,9 @@ class Capabilities:
                        environment's skills cannot be slowed.
     back_off:          ``back_off(env, seen, start)``: a recovery motion, one action per
                        observed state ``seen`` (None once done), that takes the robot
-                       back towards ``start`` (the task's initial state), e.g. the hand
-                       raised straight up, then to where it began, the grip kept. The
+                       back towards ``start`` (the task's initial state), e.g. the
+                       fingers opened, the hand raised straight up, then back to where
+                       it began. The
                        closed loop runs it when a replan finds no plan from where a
                        failed skill left the robot (a hand on the table beside a dropped
                        stick, hovering where no demonstration went), and plans again from
