@@ -210,3 +210,13 @@ def test_rows_of_corrected_skills_are_their_own_and_say_so():
     assert [r.label for r in rows] == ["BPNS", "BPNS + corrections (moderate x2)"]
     assert [r.pooled for r in rows] == [(1, 2), (2, 2)]
     assert "| cover | BPNS + corrections (moderate x2) | 10 | moderate |" in markdown_table(rows)
+
+
+def test_cells_over_worlds_say_their_worlds_follow_the_seed_and_others_are_as_before(cover_env):
+    # a cell stored when every seed drew its worlds from seed 0 must not pass for one
+    # whose worlds follow the seed: its settings differ, so the store refuses to mix them
+    worlds = dataclasses.replace(BASE, worlds=("hard",))
+    cells = [c for c in sweep_cells(worlds, {"cover": cover_env}) if c.kind == EVAL]
+    assert cells and all(c.settings["world_draws"] == "per-seed" for c in cells)
+    plain = [c for c in sweep_cells(BASE, {"cover": cover_env}) if c.kind == EVAL]
+    assert all("world_draws" not in c.settings for c in plain)
