@@ -63,6 +63,14 @@ class ExecutionConfig:
                       can leave the robot where no learned skill starts well (the hand
                       on the table beside a dropped stick); demonstrations start from
                       poses like the one it backs off to.
+    predict_latency:  skills executing in the world see their observation advanced, in
+                      the model, by the commands the world has not applied yet; the
+                      world's latency is identified from the task's first control steps
+                      (:class:`bpns.acting.prediction.InFlightPredictor`). A command
+                      computed from a state ``d`` steps stale overshoots; this is the
+                      state it will meet.
+    latency_learn_steps: the control steps of a task the latency is identified from
+                      (until then nothing is predicted).
     slow_from:        when ``world_speed`` takes effect: from the task's ``start``, or from
                       the first ``deviation`` (a skill boundary where the world's features
                       left the model's prediction by more than ``rerefine_atol``, or a
@@ -80,6 +88,8 @@ class ExecutionConfig:
     slow_from: str = SLOW_FROM[0]
     resume_stopped: bool = True
     back_off: bool = True
+    predict_latency: bool = False
+    latency_learn_steps: int = 20
 
     def __post_init__(self) -> None:
         if isinstance(self.max_replans, bool) or not isinstance(self.max_replans, int):
@@ -102,6 +112,11 @@ class ExecutionConfig:
             )
         if not (0.0 < self.world_speed <= 1.0):
             raise ExecutionConfigError(f"world_speed must be in (0, 1], got {self.world_speed}")
+        steps = self.latency_learn_steps
+        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
+            raise ExecutionConfigError(
+                f"latency_learn_steps must be a whole number >= 1, got {steps!r}"
+            )
         if self.slow_from not in SLOW_FROM:
             raise ExecutionConfigError(
                 f"slow_from must be one of {', '.join(SLOW_FROM)}, got {self.slow_from!r}"

@@ -33,6 +33,7 @@ import numpy as np
 
 from bpns.acting.config import ExecutionConfig
 from bpns.acting.monitor import atoms_text, kept_atoms, necessary_atoms, repair_point
+from bpns.acting.prediction import InFlightPredictor
 from bpns.acting.world import WorldRun
 from bpns.env.abstraction import abstract
 from bpns.env.environment import Environment, adopt_state
@@ -252,6 +253,9 @@ class ClosedLoopPlanner:
 
     # -- the loop -------------------------------------------------------------------
     def run(self, world: WorldRun, rng: np.random.Generator, deadline: float) -> ClosedLoopResult:
+        if self.execution.predict_latency:
+            steps = self.execution.latency_learn_steps
+            world.predict_with(InFlightPredictor(self.model, learn_steps=steps))
         stats = ClosedLoopStats()
         executed: list[str] = []
         try:

@@ -13,7 +13,7 @@ the environment's back-off motion (:meth:`WorldRun.back_off`), recorded as a ste
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -56,6 +56,7 @@ class WorldRun:
         # wall-clock seconds spent simulating them: on a robot the world's own time, not
         # the agent's (what an evaluation reports apart as "agent time")
         self.world_seconds = 0.0
+        self._latency_told = False
 
     @property
     def used(self) -> int:
@@ -88,6 +89,7 @@ class WorldRun:
         finally:
             self.world_seconds += time.perf_counter() - t0
         self.world_steps += self.executor.sim_steps - before
+        self._tell_latency()
         if isinstance(out, Executed):
             self._advance(op, subgoal, out.actions, out.states, REACHED)
             return None
@@ -117,6 +119,24 @@ class WorldRun:
         """Take over a segment the model simulated from this very state under this very
         physics: the world would reproduce it bit for bit (``f`` is deterministic)."""
         self._advance(op, subgoal, actions, states, REACHED)
+
+    def predict_with(self, predictor: Callable[..., State]) -> None:
+        """Let every later skill's policy see what ``predictor`` makes of the world's
+        observation and the commands sent so far (:mod:`bpns.acting.prediction`)."""
+        self.executor.predict = predictor
+        self.executor.sent = self.actions  # the world's commands, extended as it acts
+
+    def _tell_latency(self) -> None:
+        """An event once the predictor has identified the world's latency."""
+        predictor = self.executor.predict
+        if self._latency_told or not getattr(predictor, "identified", False):
+            return
+        self._latency_told = True
+        self.event(
+            "latency",
+            f"identified a latency of {predictor.latency} control steps "  # type: ignore[union-attr]
+            f"from the first {predictor.learn_steps} steps",  # type: ignore[union-attr]
+        )
 
     def back_off(self) -> bool:
         """Run the environment's back-off motion (``Capabilities.back_off``) from here

@@ -300,6 +300,13 @@ def add_world_arguments(p: argparse.ArgumentParser) -> None:
         "again with a first step that finishes a skill the world stopped midway",
     )
     p.add_argument(
+        "--predict-latency",
+        action="store_true",
+        help="closed loop: skills see their observation advanced in the model by the "
+        "commands the world has not applied yet, its latency identified from each task's "
+        "first 20 control steps (a Smith predictor; off by default)",
+    )
+    p.add_argument(
         "--no-back-off",
         dest="back_off",
         action="store_false",
@@ -337,6 +344,7 @@ def world_settings(
         slow_from=args.slow_from,
         resume_stopped=args.resume_stopped,
         back_off=args.back_off,
+        predict_latency=args.predict_latency,
     )
     return worlds, model, execution
 

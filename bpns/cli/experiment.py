@@ -138,6 +138,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="with --world-speed: from the task's start (default) or the first deviation",
     )
     parser.add_argument(
+        "--predict-latency",
+        action="store_true",
+        help="closed-loop eval cells run with `bpns eval --predict-latency` (skills see their "
+        "observation advanced by the commands in flight; default: off)",
+    )
+    parser.add_argument(
         "--corrections",
         nargs="+",
         metavar="PRESET|NAME=VALUE",
@@ -195,6 +201,7 @@ def sweep_config(args: argparse.Namespace) -> SweepConfig:
             demote_refuted=args.demote_refuted,
             world_speed=args.world_speed,
             slow_from=args.slow_from,
+            predict_latency=args.predict_latency,
             corrections=None if args.corrections is None else " ".join(args.corrections),
             correction_rounds=args.correction_rounds,
         )
@@ -327,6 +334,8 @@ def command_line(config: SweepConfig, out: Path, args: argparse.Namespace) -> st
         argv += ["--world-speed", f"{config.world_speed:g}"]
     if config.slow_from is not None:
         argv += ["--slow-from", config.slow_from]
+    if config.predict_latency:
+        argv += ["--predict-latency"]
     if config.corrections is not None:
         argv += ["--corrections", *config.corrections.split()]
     if config.correction_rounds is not None:

@@ -146,6 +146,10 @@ class SkillExecutor:
         self.last_states: list[State] = []  # the states those actions led to
         self.last_subgoal: np.ndarray | None = None
         self.observe = observation_of(env)
+        # what policies see may be advanced by the commands still in flight
+        # (bpns.acting.prediction); ``sent`` holds the commands of earlier executions
+        self.predict = None
+        self.sent: list[np.ndarray] = []
         self.dead_end = env.capabilities.dead_end if config.end_at_dead_end else None
         # every ground contact-related atom over the task's objects (segmentation's set)
         self.contact_watch: list = []
@@ -219,8 +223,11 @@ class SkillExecutor:
                 raise ExecutionTimeout
             if used_steps + t >= self.horizon:
                 return FailureReason.TASK_HORIZON
+            seen = observe(state)
+            if self.predict is not None:
+                seen = self.predict(state, seen, self.sent, actions)
             try:
-                raw = policy(observe(state), objects, subgoal)
+                raw = policy(seen, objects, subgoal)
             except Exception:
                 return FailureReason.POLICY_ERROR
             action = checked_action(raw, low, high)

@@ -60,8 +60,8 @@ class PlanStep:
 class Event:
     """Something an execution monitor saw or did, before action ``at`` of a rollout:
     ``kind`` is ``diverged``, ``skill_failed``, ``atom_lost``, ``replanned``,
-    ``rerefined`` or ``replan_failed``; ``text`` says it for people ("replan 1: expected
-    Holding(block0) did not hold")."""
+    ``rerefined``, ``replan_failed``, ``backed_off``, ``slowed`` or ``latency``; ``text``
+    says it for people ("replan 1: expected Holding(block0) did not hold")."""
 
     at: int
     kind: str

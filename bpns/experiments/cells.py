@@ -58,6 +58,7 @@ class Cell:
     objects: str | None = None  # eval cells of an object axis: "button=5" (bpns eval --objects)
     world_speed: float = 1.0  # closed-loop eval cells: ExecutionConfig.world_speed
     slow_from: str = "start"  # and ExecutionConfig.slow_from (with a world_speed below 1)
+    predict_latency: bool = False  # closed-loop eval cells: ExecutionConfig.predict_latency
     # skills cells and their eval cells: policies retrained on corrections in these worlds
     # (``bpns learn --corrections``), over ``correction_rounds`` rounds
     corrections: str | None = None
@@ -89,6 +90,8 @@ class Cell:
                 level += f"-speed{level_label(self.world_speed)}"
                 if self.slow_from != "start":
                     level += f"-from{self.slow_from}"
+            if self.predict_latency:
+                level += "-predict"
             corrected = self.corrected
             return f"{EVAL}/{self.env}-{self.approach}{count}{corrected}{level}-seed{self.seed}"
         if self.kind == SKILLS:
@@ -137,6 +140,8 @@ class Cell:
                 s["world_speed"] = self.world_speed
                 if self.slow_from != "start":
                     s["slow_from"] = self.slow_from
+            if self.predict_latency:  # (absent when off, likewise)
+                s["predict_latency"] = True
         return json.loads(json.dumps(s))
 
     def describe(self) -> str:
@@ -159,6 +164,8 @@ class Cell:
             parts.append(f"world speed {self.world_speed:g}")
             if self.slow_from != "start":
                 parts.append(f"from the first {self.slow_from}")
+        if self.predict_latency:
+            parts.append("predicting the commands in flight")
         if self.corrections is not None:
             parts.append(f"corrected in {self.corrections} x{self.correction_rounds}")
         parts.append(f"seed {self.seed}")
@@ -249,6 +256,8 @@ def _eval_cells(
             objects=objects,
             world_speed=_world_speed(config, execution),
             slow_from=config.slow_from or "start",
+            predict_latency=config.predict_latency
+            and (execution or "closed-loop") == "closed-loop",
         )
         for physics in config.levels()
         for world, execution in config.conditions()

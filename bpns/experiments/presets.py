@@ -57,6 +57,8 @@ class SweepConfig:
     # it takes effect (ExecutionConfig.slow_from; None: from the start)
     world_speed: float | None = None
     slow_from: str | None = None
+    # ExecutionConfig.predict_latency of every closed-loop cell
+    predict_latency: bool = False
     # skills retrained on the oracle's corrections in these worlds (``bpns learn
     # --corrections``; None: none), over this many rounds (None: 2)
     corrections: str | None = None
@@ -211,6 +213,8 @@ class SweepConfig:
             del d["world_speed"]
         if self.slow_from is None:  # (absent, likewise)
             del d["slow_from"]
+        if not self.predict_latency:  # (absent, likewise)
+            del d["predict_latency"]
         if self.corrections is None:  # (absent, likewise)
             del d["corrections"], d["correction_rounds"]
         if not self.worlds and not self.executions and self.model == "nominal":

@@ -144,6 +144,7 @@ def _evaluate(job: CellJob) -> dict[str, Any]:
             cell.execution or "closed-loop",
             world_speed=cell.world_speed,
             slow_from=cell.slow_from,
+            predict_latency=cell.predict_latency,
         ),
         eval_set=_eval_set_of(cell),
     )

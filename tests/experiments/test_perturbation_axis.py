@@ -220,3 +220,16 @@ def test_cells_over_worlds_say_their_worlds_follow_the_seed_and_others_are_as_be
     assert cells and all(c.settings["world_draws"] == "per-seed" for c in cells)
     plain = [c for c in sweep_cells(BASE, {"cover": cover_env}) if c.kind == EVAL]
     assert all("world_draws" not in c.settings for c in plain)
+
+
+def test_predicting_the_commands_in_flight_names_closed_loop_cells_only(cover_env):
+    worlds = dataclasses.replace(BASE, worlds=("hard",), executions=("closed-loop", "open-loop"))
+    before = {c.key: c for c in sweep_cells(worlds, {"cover": cover_env}) if c.kind == EVAL}
+    predict = dataclasses.replace(worlds, predict_latency=True)
+    cells = [c for c in sweep_cells(predict, {"cover": cover_env}) if c.kind == EVAL]
+    closed = [c for c in cells if c.execution == "closed-loop"]
+    opened = [c for c in cells if c.execution == "open-loop"]
+    assert closed and all(c.key.endswith("-predict-seed0") for c in closed)
+    assert all(c.settings["predict_latency"] is True for c in closed)
+    assert opened and all(before[c.key].settings == c.settings for c in opened)
+    assert "predict_latency" not in worlds.to_json() and predict.to_json()["predict_latency"]
