@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -148,7 +148,7 @@ class SkillExecutor:
         self.observe = observation_of(env)
         # what policies see may be advanced by the commands still in flight
         # (bpns.acting.prediction); ``sent`` holds the commands of earlier executions
-        self.predict = None
+        self.predict: Callable[..., State] | None = None
         self.sent: list[np.ndarray] = []
         self.dead_end = env.capabilities.dead_end if config.end_at_dead_end else None
         # every ground contact-related atom over the task's objects (segmentation's set)
