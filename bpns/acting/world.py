@@ -13,10 +13,11 @@ the environment's back-off motion (:meth:`WorldRun.back_off`), recorded as a ste
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
+from bpns.acting.prediction import InFlightPredictor
 from bpns.env.abstraction import abstract
 from bpns.env.environment import Environment
 from bpns.execution.executor import (
@@ -56,6 +57,7 @@ class WorldRun:
         # wall-clock seconds spent simulating them: on a robot the world's own time, not
         # the agent's (what an evaluation reports apart as "agent time")
         self.world_seconds = 0.0
+        self.predictor: InFlightPredictor | None = None
         self._latency_told = False
 
     @property
@@ -120,22 +122,23 @@ class WorldRun:
         physics: the world would reproduce it bit for bit (``f`` is deterministic)."""
         self._advance(op, subgoal, actions, states, REACHED)
 
-    def predict_with(self, predictor: Callable[..., State]) -> None:
+    def predict_with(self, predictor: InFlightPredictor) -> None:
         """Let every later skill's policy see what ``predictor`` makes of the world's
         observation and the commands sent so far (:mod:`bpns.acting.prediction`)."""
+        self.predictor = predictor
         self.executor.predict = predictor
         self.executor.sent = self.actions  # the world's commands, extended as it acts
 
     def _tell_latency(self) -> None:
         """An event once the predictor has identified the world's latency."""
-        predictor = self.executor.predict
-        if self._latency_told or not getattr(predictor, "identified", False):
+        p = self.predictor
+        if p is None or self._latency_told or not p.identified:
             return
         self._latency_told = True
         self.event(
             "latency",
-            f"identified a latency of {predictor.latency} control steps "  # type: ignore[union-attr]
-            f"from the first {predictor.learn_steps} steps",  # type: ignore[union-attr]
+            f"identified a latency of {p.latency} control steps from the first "
+            f"{p.learn_steps} steps",
         )
 
     def back_off(self) -> bool:

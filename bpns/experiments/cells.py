@@ -256,8 +256,7 @@ def _eval_cells(
             objects=objects,
             world_speed=_world_speed(config, execution),
             slow_from=config.slow_from or "start",
-            predict_latency=config.predict_latency
-            and (execution or "closed-loop") == "closed-loop",
+            predict_latency=config.predict_latency and _closed_loop(execution),
         )
         for physics in config.levels()
         for world, execution in config.conditions()
@@ -275,9 +274,14 @@ def _corrections(config: SweepConfig) -> dict[str, Any]:
 
 def _world_speed(config: SweepConfig, execution: str | None) -> float:
     """The sweep's world speed for a closed-loop cell (open loop replays at full speed)."""
-    if config.world_speed is None or (execution or "closed-loop") != "closed-loop":
+    if config.world_speed is None or not _closed_loop(execution):
         return 1.0
     return config.world_speed
+
+
+def _closed_loop(execution: str | None) -> bool:
+    """Does a cell of this execution (None: not swept, so the default) close the loop?"""
+    return (execution or "closed-loop") == "closed-loop"
 
 
 def _slug(text: str) -> str:

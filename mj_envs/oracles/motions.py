@@ -220,15 +220,15 @@ class BackOffToStart:
 
     def __call__(self, env: object, seen: State, start: State) -> np.ndarray | None:
         robot = next(o for o in seen.data if o.type.name == "robot")
-        now, goal = hand(seen, robot), hand(start, robot)
-        error = goal - now
         if self.wait_open and fingers(seen, robot) < OPEN_FINGERS:
-            return np.array([0.0, 0.0, 0.0, 1.0])  # let go where it is
-        if np.all(np.abs(error) <= self.tol):
+            return open_first(seen, robot, np.zeros(4))  # let go where it is
+        goal = hand(start, robot)
+        if at(seen, robot, goal, self.tol):
             return None
-        if now[2] < self.height - self.tol and np.max(np.abs(error[:2])) > self.tol:
-            return np.array([0.0, 0.0, GAIN * (self.height - now[2]), 1.0])
-        return np.array([*(GAIN * error), 1.0])
+        now = hand(seen, robot)
+        if now[2] < self.height - self.tol and np.max(np.abs(goal[:2] - now[:2])) > self.tol:
+            goal = np.array([now[0], now[1], self.height])  # straight up first
+        return move_action(seen, robot, goal, 1.0)
 
 
 def grasp_action(
