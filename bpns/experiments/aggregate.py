@@ -64,6 +64,8 @@ class SeedResult:
     median_plan_steps: float | None = None
     # median over solved tasks of the time less the world's simulation (None: not recorded)
     median_agent_seconds: float | None = None
+    # each task's world (``Perturbation.label()``) and whether it was solved
+    trials: tuple[tuple[str, bool], ...] = ()
 
     @classmethod
     def from_record(cls, record: dict[str, Any]) -> SeedResult:
@@ -82,6 +84,7 @@ class SeedResult:
             mean_replans=float(r.get("mean_replans", 0.0)),
             median_plan_steps=_median_plan_steps(r["tasks"]),
             median_agent_seconds=_median_agent_seconds(r["tasks"]),
+            trials=tuple((str(t["world"]), bool(t["solved"])) for t in r["tasks"] if "world" in t),
         )
 
     def fraction_solved_within(self, seconds: float) -> float:

@@ -12,6 +12,7 @@ from pathlib import Path
 from bpns.atomic import staged
 from bpns.env.environment import Environment
 from bpns.errors import BpnsError
+from bpns.evaluation.by_world import world_tables
 from bpns.evaluation.evaluate import EvalReport, conditions_line, markdown_table
 from bpns.evaluation.reporting import SolvedVideo, render_longest_solved, write_results
 from bpns.execution.video import VideoError
@@ -61,6 +62,9 @@ def report_evaluation(
     ``page`` asks for (:mod:`bpns.workflow.report_page`). Raises ``VideoError`` when rendering
     fails and :class:`TaskNotEvaluatedError` for a task not evaluated."""
     table = conditions_line(reports) + "\n\n" + markdown_table(reports)
+    by_world = world_tables(reports)
+    if by_world:
+        table += "\n" + by_world
     # every file is written under a staging directory and put in place at the end, so
     # that a command stopped while rendering leaves the earlier outputs as they were
     with staged(out) as staging:

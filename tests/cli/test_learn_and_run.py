@@ -278,3 +278,6 @@ def test_run_with_perturb_and_corrections_adds_a_perturbed_table_beside_the_nomi
     table = (out / "eval_perturbed" / "results.md").read_text()
     assert table.startswith("World: moderate; model: nominal; execution: closed-loop")
     assert (out / "eval_perturbed_solved.mp4").is_file()
+    # the perturbed table is split by the world each task met; the nominal one is not
+    assert "Solved by the world each task met" in table and "| mass_scale | " in table
+    assert "Solved by the world" not in (out / "eval" / "results.md").read_text()

@@ -13,6 +13,7 @@ from bpns.experiments.aggregate import aggregate, markdown_table
 from bpns.experiments.cells import EVAL
 from bpns.experiments.plots import save_figure, success_vs_perturbation, success_vs_world
 from bpns.experiments.presets import SweepConfigError
+from bpns.experiments.report import world_split_section
 from bpns.experiments.sweep import sweep_cells
 from tests.experiments.test_sweeps import TINY, _eval_record
 
@@ -233,3 +234,24 @@ def test_predicting_the_commands_in_flight_names_closed_loop_cells_only(cover_en
     assert all(c.settings["predict_latency"] is True for c in closed)
     assert opened and all(before[c.key].settings == c.settings for c in opened)
     assert "predict_latency" not in worlds.to_json() and predict.to_json()["predict_latency"]
+
+
+def test_a_worlds_sweep_splits_each_perturbed_row_by_the_world_its_tasks_met():
+    hard = [Perturbation(latency=d, obs_noise=0.005) for d in (0, 1, 2, 2)]
+    records = []
+    for seed in (0, 1):
+        record = _world_record("bpns", 3, "hard", "closed-loop", 2)
+        record["settings"]["seed"] = seed
+        for task, world in zip(record["result"]["tasks"], hard, strict=True):
+            task["world"] = world.label()
+        records.append(record)
+    nominal = _world_record("bpns", 3, "nominal", "closed-loop", 4)
+    for task in nominal["result"]["tasks"]:
+        task["world"] = "nominal"
+    section = world_split_section(aggregate([nominal, *records]))
+    assert "cover, BPNS, 3 demonstrations: solved by the world each task met" in section
+    assert "| World parameter | Range | hard, closed-loop |" in section  # nominal: no split
+    # each seed solved its first two tasks (latency 0 and 1); pooled over both seeds
+    assert "| latency | 0 steps | 2/2 [34.2, 100.0] |" in section
+    assert "| latency | 2 steps | 0/4 [0.0, 49.0] |" in section
+    assert world_split_section(aggregate([nominal])) == ""
