@@ -255,3 +255,8 @@ def test_a_worlds_sweep_splits_each_perturbed_row_by_the_world_its_tasks_met():
     assert "| latency | 0 steps | 2/2 [34.2, 100.0] |" in section
     assert "| latency | 2 steps | 0/4 [0.0, 49.0] |" in section
     assert world_split_section(aggregate([nominal])) == ""
+    # a hand-edited world record leaves its task out of the split, not the report
+    records[0]["result"]["tasks"][0]["world"] = "latency=banana"
+    section = world_split_section(aggregate([nominal, *records]))
+    assert "(1 tasks whose world record is unreadable left out)" in section
+    assert "| latency | 0 steps | 1/1 [20.7, 100.0] |" in section
