@@ -78,11 +78,19 @@ def world_of_label(label: str) -> Perturbation:
     return NOMINAL if label == "nominal" else parse_perturbation(label.split(","))
 
 
-def world_split_table(columns: Sequence[tuple[str, Iterable[Trial]]]) -> str:
-    """A markdown table: a row per (parameter, bin) met in any column, a column per
-    ``(heading, trials)`` whose worlds varied, each cell solved/tasks with its Wilson
-    95 % interval ("–" where the column's tasks had no world in the bin); empty when no
-    column's worlds varied."""
+@dataclass(frozen=True)
+class WorldSplit:
+    """Success per world bin, a column per group of tasks: ``rows`` are (parameter, bin
+    label, one text per column: solved/tasks [Wilson 95 %], or "–" where the column's
+    tasks had no world in the bin)."""
+
+    headings: tuple[str, ...]
+    rows: tuple[tuple[str, str, tuple[str, ...]], ...]
+
+
+def world_split(columns: Sequence[tuple[str, Iterable[Trial]]]) -> WorldSplit | None:
+    """A row per (parameter, bin) met in any column, a column per ``(heading, trials)``
+    whose worlds varied; None when no column's worlds varied."""
     split = []
     for heading, trials in columns:
         bins = {(b.parameter, b.order, b.label): b for b in world_bins(trials)}
@@ -93,25 +101,39 @@ def world_split_table(columns: Sequence[tuple[str, Iterable[Trial]]]) -> str:
         key=lambda k: (SPLIT_PARAMETERS.index(k[0]), k[1]),
     )
     if not keys:
+        return None
+    rows = tuple(
+        (key[0], key[2], tuple(bins[key].text() if key in bins else "–" for _, bins in split))
+        for key in keys
+    )
+    return WorldSplit(tuple(h for h, _ in split), rows)
+
+
+def world_split_table(columns: Sequence[tuple[str, Iterable[Trial]]]) -> str:
+    """:func:`world_split` as a markdown table (empty when no column's worlds varied)."""
+    split = world_split(columns)
+    if split is None:
         return ""
-    head = "| World parameter | Range | " + " | ".join(h for h, _ in split) + " |"
-    rule = "|---|---|" + "---:|" * len(split)
+    head = "| World parameter | Range | " + " | ".join(split.headings) + " |"
+    rule = "|---|---|" + "---:|" * len(split.headings)
     lines = [head, rule]
-    for key in keys:
-        cells = [bins[key].text() if key in bins else "–" for _, bins in split]
-        lines.append(f"| {key[0]} | {key[2]} | " + " | ".join(cells) + " |")
+    lines += [f"| {p} | {label} | " + " | ".join(cells) + " |" for p, label, cells in split.rows]
     return "\n".join(lines) + "\n"
+
+
+def report_columns(reports: Sequence[EvalReport]) -> list[tuple[str, list[Trial]]]:
+    """A column per report: its label and each task's (world, solved)."""
+    return [(r.label, [(o.world, o.solved) for o in r.outcomes]) for r in reports]
+
+
+SPLIT_CAPTION = (
+    "Solved by the world each task met (tasks binned by each parameter that varied; "
+    "Wilson 95 % intervals)"
+)
 
 
 def world_tables(reports: Sequence[EvalReport]) -> str:
     """``reports``' success split by the world each task met (a column per approach;
     empty when the tasks' worlds did not vary), with its caption."""
-    table = world_split_table(
-        [(r.label, [(o.world, o.solved) for o in r.outcomes]) for r in reports]
-    )
-    if not table:
-        return ""
-    return (
-        "Solved by the world each task met (tasks binned by each parameter that varied; "
-        "Wilson 95 % intervals):\n\n" + table
-    )
+    table = world_split_table(report_columns(reports))
+    return f"{SPLIT_CAPTION}:\n\n{table}" if table else ""

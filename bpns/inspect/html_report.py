@@ -18,6 +18,7 @@ from pathlib import Path
 from urllib.parse import quote
 
 from bpns.atomic import atomic_path
+from bpns.evaluation.by_world import SPLIT_CAPTION, report_columns, world_split
 from bpns.evaluation.evaluate import EvalReport, TaskOutcome, conditions_line
 from bpns.evaluation.rollout_files import rollouts_name
 from bpns.execution.rollouts import REACHED
@@ -70,6 +71,7 @@ def write_page(out: Path, reports: Sequence[EvalReport], table: str, media: Page
         "<h1>" + _esc(_title(reports)) + "</h1>",
         f"<p>{_esc(conditions_line(reports))}</p>",
         _summary_table(reports),
+        _world_split(reports),
         '<p class="toolbar"><label><input type="checkbox" id="only-failed" '
         'onchange="showOnlyFailed(this.checked)"> show failed tasks only</label></p>',
         '<p>Files: <a href="results.json">results.json</a> · '
@@ -100,6 +102,19 @@ def _title(reports: Sequence[EvalReport]) -> str:
 
 def _num(x: float | None, fmt: str) -> str:
     return "–" if x is None or not math.isfinite(x) else format(x, fmt)
+
+
+def _world_split(reports: Sequence[EvalReport]) -> str:
+    """The results split by the world each task met (nothing for nominal tasks)."""
+    split = world_split(report_columns(reports))
+    if split is None:
+        return ""
+    head = "".join(f"<th>{_esc(h)}</th>" for h in split.headings)
+    rows = [f"<tr><th>World parameter</th><th>Range</th>{head}</tr>"]
+    for parameter, label, cells in split.rows:
+        tds = "".join(f'<td class="num">{_esc(c)}</td>' for c in cells)
+        rows.append(f"<tr><td>{_esc(parameter)}</td><td>{_esc(label)}</td>{tds}</tr>")
+    return f'<p>{_esc(SPLIT_CAPTION)}:</p><table class="world-split">' + "".join(rows) + "</table>"
 
 
 def _summary_table(reports: Sequence[EvalReport]) -> str:

@@ -281,3 +281,6 @@ def test_run_with_perturb_and_corrections_adds_a_perturbed_table_beside_the_nomi
     # the perturbed table is split by the world each task met; the nominal one is not
     assert "Solved by the world each task met" in table and "| mass_scale | " in table
     assert "Solved by the world" not in (out / "eval" / "results.md").read_text()
+    page = (out / "eval_perturbed" / "report.html").read_text()
+    assert '<table class="world-split">' in page and "<td>mass_scale</td>" in page
+    assert "world-split" not in (out / "eval" / "report.html").read_text()
