@@ -209,17 +209,32 @@ class BackOffToStart:
     and count the back-off done only then; False where the fingers may not open
     everywhere (Cover's allowed regions): they are told to open all the way and open
     where they may. "There" is every axis of the hand within ``tol`` (m; default 2 cm,
-    four times the `hard` worlds' observation noise) of its start. For a Panda whose
-    robot object (type ``robot``) has the hand's (x, y, z, fingers) first and whose
-    action is ``(dx, dy, dz, grip)`` (+1 opens).
+    four times the `hard` worlds' observation noise) of its start.
+
+    ``keep_held``: a type name (e.g. ``"stick"``) whose objects carry a ``grasped``
+    feature. While one reads held (> 0.5), the back-off keeps the fingers closed and only
+    takes the hand straight up to ``height``, done there: a tool still in hand after a
+    stalled skill is worth more than the start pose (Stick Button's press with the stick
+    that stopped at its horizon: at the travel height, holding the stick, is where a
+    demonstrated second press starts). None: always let go.
+
+    For a Panda whose robot object (type ``robot``) has the hand's (x, y, z, fingers)
+    first and whose action is ``(dx, dy, dz, grip)`` (+1 opens).
     """
 
     height: float
     wait_open: bool = True
     tol: float = 0.02
+    keep_held: str | None = None
 
     def __call__(self, env: object, seen: State, start: State) -> np.ndarray | None:
         robot = next(o for o in seen.data if o.type.name == "robot")
+        if self.keep_held is not None and any(
+            o.type.name == self.keep_held and seen.get(o, "grasped") > 0.5 for o in seen.data
+        ):
+            now = hand(seen, robot)
+            up = np.array([now[0], now[1], self.height])
+            return None if at(seen, robot, up, self.tol) else move_action(seen, robot, up, -1.0)
         if self.wait_open and fingers(seen, robot) < OPEN_FINGERS:
             return open_first(seen, robot, np.zeros(4))  # let go where it is
         goal = hand(start, robot)

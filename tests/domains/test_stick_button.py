@@ -265,31 +265,54 @@ def test_oracle_skills_solve_an_eval_task_needing_hand_and_stick_through_the_pla
     assert task.goal <= abstract(state, env.goal_predicates)
 
 
-def test_the_back_off_lets_go_of_the_stick_and_returns_the_hand_to_its_start(env):
-    # a closed loop's last resort: the stick held up in the air falls where the hand let
-    # go, and the hand ends where the task began, open (what every demonstration starts
-    # from); the motion runs in physics through WorldRun and replays exactly
+def _backed_off(env, task: Task, failed_at: State):
+    """A WorldRun from ``failed_at`` (where a failed skill left the world) after the
+    environment's back-off: whether it got there, the run; its actions replay exactly."""
     from bpns.acting.world import BACK_OFF, WorldRun
     from bpns.execution.executor import RolloutConfig
+
+    run = WorldRun(env, task, RolloutConfig(), None)
+    run.state = failed_at
+    done = run.back_off()
+    (step,) = run.rollout().steps
+    assert step.operator == BACK_OFF
+    s = failed_at
+    for action in run.action_array():
+        s = env.simulate(s, action)
+    assert np.array_equal(s.sim.flat, run.state.sim.flat)
+    return done, run
+
+
+def test_the_back_off_lets_go_and_returns_the_hand_to_its_start_when_nothing_is_held(env):
+    # a closed loop's last resort: the hand closed on nothing above the holder (a failed
+    # pick) opens and ends where the task began (what every demonstration starts from);
+    # the motion runs in physics through WorldRun and replays exactly
     from mj_envs.oracles.motions import OPEN_FINGERS
 
     task = env.task(0, 0, True)
     robot, stick = _obj(task.init, "robot"), _obj(task.init, "stick")
-    held = _grasp_attempt(env, task, offset=GRASP_MIN + 0.02)[-1]
-    assert GRASPED.holds(held, (robot, stick)) and held.get(stick, "z") > SAFE_Z - 0.03
-
-    run = WorldRun(env, task, RolloutConfig(), None)
-    run.state = held  # where a failed skill left the world
-    assert run.back_off()
+    missed = _grasp_attempt(env, task, offset=0.06)[-1]  # fingers shut on the holder walls
+    assert not GRASPED.holds(missed, (robot, stick)) and missed.get(robot, "fingers") < 0.01
+    done, run = _backed_off(env, task, missed)
     end = run.state
-    assert not GRASPED.holds(end, (robot, stick))
-    assert end.get(stick, "z") < STICK_HEIGHT  # fell back onto the table
+    assert done and run.rollout().steps[0].outcome == "reached"
     assert end.get(robot, "fingers") >= OPEN_FINGERS - 0.002
     start_hand = task.init.data[robot][:3]
     assert np.all(np.abs(end.data[robot][:3] - start_hand) <= 0.02)
-    (step,) = run.rollout().steps
-    assert (step.operator, step.outcome) == (BACK_OFF, "reached")
-    s = held
-    for action in run.action_array():
-        s = env.simulate(s, action)
-    assert np.array_equal(s.sim.flat, end.sim.flat)
+    assert end.get(stick, "z") < STICK_HEIGHT  # the stick stayed on the table
+
+
+def test_the_back_off_keeps_a_held_stick_and_only_rises_to_the_travel_height(env):
+    # a stick press stopped at its horizon with the stick still in hand: letting go would
+    # drop it where no plan picks it again; rising with it is where a second press starts
+    task = env.task(0, 0, True)
+    robot, stick = _obj(task.init, "robot"), _obj(task.init, "stick")
+    attempt = _grasp_attempt(env, task, offset=GRASP_MIN + 0.02)
+    low = next(x for x in attempt if GRASPED.holds(x, (robot, stick)))  # just closed on it
+    assert low.get(robot, "z") < SAFE_Z - 0.05
+    done, run = _backed_off(env, task, low)
+    end = run.state
+    assert done and GRASPED.holds(end, (robot, stick))
+    assert abs(end.get(robot, "z") - SAFE_Z) <= 0.02
+    assert np.all(np.abs(end.data[robot][:2] - low.data[robot][:2]) <= 0.02)  # straight up
+    assert end.get(stick, "z") > SAFE_Z - 0.05  # carried up with the hand

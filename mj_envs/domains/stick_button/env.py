@@ -61,7 +61,8 @@ class StickButtonEnv(MujocoEnv):
         object_limits={"button": BUTTON_LIMITS},
         with_objects=with_objects,
         motion_dims=(0, 1, 2),  # hand translation; not the fingers
-        back_off=BackOffToStart(SAFE_Z),  # open, up, back to the start pose
+        # up, keeping the stick if it is still held; else open, up, back to the start pose
+        back_off=BackOffToStart(SAFE_Z, keep_held="stick"),
     )
     controller_config = CONTROLLER
 
