@@ -23,7 +23,11 @@ def test_few_demos_learn_four_operators_using_the_given_skills_and_solve_a_task(
     env = DoorsEnv(grid_sizes=(2,))
     demos = [run_demonstrator(env, t, [0, i]) for i, t in enumerate(env.train_tasks(6, seed=4))]
     assert all(d is not None for d in demos)
-    fast = MLPConfig(num_steps=400)
+    # 400 steps left OpenDoor's policy from six demos on the edge: in a fresh install of
+    # 2026-12-07 (mujoco 3.17.0, numpy 2.4.6; 3b01046 failed there too) refinement failed
+    # from half the planner seeds; 1500 solve the task from each of seeds 0-3 within 5
+    # samples
+    fast = MLPConfig(num_steps=1500)
     config = dataclasses.replace(
         learning_config_for(env), policy=fast, generator=fast, classifier=fast
     )
