@@ -280,9 +280,12 @@ def _legend_below(fig: Figure, axes: Sequence) -> None:
             entries.setdefault(label, handle)
     if not entries:
         return
-    columns = min(2 * len(axes), len(entries))
-    rows = -(-len(entries) // columns)
     width, height = fig.get_size_inches()
+    # as many columns as the longest label lets fit across the figure (8 pt text: about
+    # 0.07 in a character, plus the marker), so long labels are not cut at the edges
+    entry_width = 0.07 * max(len(label) for label in entries) + 0.6
+    columns = max(1, min(2 * len(axes), len(entries), int(width // entry_width)))
+    rows = -(-len(entries) // columns)
     fig.set_size_inches(width, height + 0.2 * rows + 0.1)
     fig.legend(
         list(entries.values()),
