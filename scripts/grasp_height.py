@@ -3,8 +3,8 @@
     python scripts/grasp_height.py FILE.h5 [--object stick] [--robot robot] [--limit 50]
 
 ``FILE.h5`` is a demonstrations file (``bpns demos``) or an eval's rollouts file (``bpns
-eval --out DIR``: ``DIR/rollouts_<approach>.h5``, each row re-simulated in its own
-world). For each, the first state whose ``--object`` reads ``grasped`` > 0.5 gives the
+eval --out DIR``: ``DIR/rollouts_<approach>.h5``, each row's stored states loaded into
+its own world). For each, the first state whose ``--object`` reads ``grasped`` > 0.5 gives the
 hand's z minus the object's z; the median and 10th-90th percentiles are printed, and for
 a rollouts file one line per row with its outcome and world. A cloned pick that closes
 while already rising holds the object higher than its demonstrator did (Stick Button:

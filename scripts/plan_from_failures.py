@@ -6,11 +6,12 @@
 For every failed row of an eval's rollouts file (``bpns eval --out DIR``:
 ``DIR/rollouts_<approach>.h5``), the world's last state is carried into the nominal
 model (as the closed loop carries it when it replans) and each ``--approach`` plans from
-there to the task's goal, once, within ``--timeout`` seconds. A state no approach plans
-from, the oracle's included, is a dead end of the world (a dropped stick off its holder,
-a toppled pot); one only the oracle plans from is a limit of the learned skills; one the
-learned skills plan from too is the closed loop's to mend. Nothing is written; one line
-per failed row goes to stdout.
+there to the task's goal, once, within ``--timeout`` seconds and the task's whole horizon
+(not what the rollout left of it: the question is whether any plan starts there). A
+state no approach plans from, the oracle's included, is a dead end of the world (a
+dropped stick off its holder, a toppled pot); one only the oracle plans from is a limit
+of the learned skills; one the learned skills plan from too is the closed loop's to
+mend. Nothing is written; one line per failed row goes to stdout.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ def main() -> None:
     print(f"{args.rollouts}: {len(failed)} of {len(f.rows)} rows failed")
     solved = dict.fromkeys(approaches, 0)
     for row in failed:
-        demo = f.demonstration(nominal, row)  # re-simulated in the row's own world
+        demo = f.demonstration(nominal, row)  # its stored states, in the row's own world
         last, demo_task = demo.states[-1], demo.task
         init = adopt_state(model, last)
         task = Task(init, demo_task.goal, demo_task.horizon)
