@@ -31,6 +31,7 @@ from bpns.execution.executor import (
 from bpns.execution.failures import NOT_EXECUTED, FailureReason
 from bpns.execution.rollouts import REACHED, Event, Rollout, rollout_of
 from bpns.structs import GroundAtom, GroundOperator, Skill, State, Task
+from bpns.timing import Stopwatch
 
 BACK_OFF = "BackOff"  # the step name of a back-off motion in rollouts and captions
 
@@ -54,9 +55,9 @@ class WorldRun:
         self.executions: list[tuple] = []  # (ground operator, subgoal, actions, outcome)
         self.events: list[Event] = []
         self.world_steps = 0  # control steps simulated in the world (reused ones excluded)
-        # wall-clock seconds spent simulating them: on a robot the world's own time, not
-        # the agent's (what an evaluation reports apart as "agent time")
-        self.world_seconds = 0.0
+        # time spent simulating them: on a robot the world's own time, not the agent's
+        # (what an evaluation reports apart as "agent time")
+        self.world_clock = Stopwatch()
         self.predictor: InFlightPredictor | None = None
         self._latency_told = False
 
@@ -83,13 +84,11 @@ class WorldRun:
     ) -> FailureReason | None:
         """Run ``skill`` towards ``subgoal`` until ``test`` holds; None on success, else
         why it failed. Whatever it executed stays executed (the world moved)."""
-        before, t0 = self.executor.sim_steps, time.perf_counter()
-        try:
+        before = self.executor.sim_steps
+        with self.world_clock.running():
             out = self.executor.execute(
                 skill, op.objects, subgoal, self.state, test, self.used, keep, self.keep_for
             )
-        finally:
-            self.world_seconds += time.perf_counter() - t0
         self.world_steps += self.executor.sim_steps - before
         self._tell_latency()
         if isinstance(out, Executed):
@@ -153,27 +152,26 @@ class WorldRun:
         actions: list[np.ndarray] = []
         states: list[State] = []
         state, outcome = self.state, FailureReason.SKILL_HORIZON
-        t0 = time.perf_counter()
         try:
-            for _ in range(executor.config.max_skill_horizon):
-                if executor.deadline is not None and time.monotonic() >= executor.deadline:
-                    raise ExecutionTimeout
-                if self.used + len(actions) >= self.task.horizon:
-                    outcome = FailureReason.TASK_HORIZON
-                    break
-                raw = policy(self.env, executor.observe(state), self.task.init)
-                if raw is None:
-                    outcome = None
-                    break
-                action = checked_action(raw, executor.low, executor.high)
-                if isinstance(action, FailureReason):
-                    outcome = action
-                    break
-                state = self.env.simulate(state, action)
-                actions.append(action)
-                states.append(state)
+            with self.world_clock.running():
+                for _ in range(executor.config.max_skill_horizon):
+                    if executor.deadline is not None and time.monotonic() >= executor.deadline:
+                        raise ExecutionTimeout
+                    if self.used + len(actions) >= self.task.horizon:
+                        outcome = FailureReason.TASK_HORIZON
+                        break
+                    raw = policy(self.env, executor.observe(state), self.task.init)
+                    if raw is None:
+                        outcome = None
+                        break
+                    action = checked_action(raw, executor.low, executor.high)
+                    if isinstance(action, FailureReason):
+                        outcome = action
+                        break
+                    state = self.env.simulate(state, action)
+                    actions.append(action)
+                    states.append(state)
         finally:
-            self.world_seconds += time.perf_counter() - t0
             self.world_steps += len(actions)
             executor.sim_steps += len(actions)
         self._advance(BACK_OFF, None, actions, states, REACHED if outcome is None else str(outcome))
@@ -181,12 +179,21 @@ class WorldRun:
 
     def replay(self, actions: np.ndarray) -> None:
         """Apply ``actions`` one after the other, whatever happens (open loop)."""
-        t0 = time.perf_counter()
-        for action in actions:
-            self.state = self.env.simulate(self.state, action)
-            self.actions.append(np.asarray(action, dtype=np.float64))
-            self.world_steps += 1
-        self.world_seconds += time.perf_counter() - t0
+        with self.world_clock.running():
+            for action in actions:
+                self.state = self.env.simulate(self.state, action)
+                self.actions.append(np.asarray(action, dtype=np.float64))
+                self.world_steps += 1
+
+    @property
+    def world_seconds(self) -> float:
+        """Wall-clock seconds spent simulating the world."""
+        return self.world_clock.wall
+
+    @property
+    def world_cpu_seconds(self) -> float:
+        """CPU seconds of this process spent simulating the world."""
+        return self.world_clock.cpu
 
     def _advance(self, op, subgoal, actions, states, outcome: str) -> None:
         self.executions.append((op, subgoal, list(actions), outcome))

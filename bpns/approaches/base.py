@@ -18,7 +18,6 @@ from __future__ import annotations
 import abc
 import dataclasses
 import enum
-import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,6 +32,7 @@ from bpns.execution.failures import FailureReason
 from bpns.execution.rollouts import Rollout
 from bpns.planning.config import PlanningConfig
 from bpns.structs import Task
+from bpns.timing import Stopwatch
 
 
 class NoOracleSkillsError(BpnsError, ValueError):
@@ -73,6 +73,7 @@ class Solution:
     # model): a robot's world runs in real time on its own; 0 when nothing was simulated
     # apart from planning, or the approach does not tell them apart
     world_seconds: float = 0.0
+    world_cpu_seconds: float = 0.0  # the same in this process's CPU seconds
 
 
 def failure(reason: FailureReason, action_dim: int, **counts: int) -> Solution:
@@ -124,10 +125,11 @@ def open_loop(
     same_physics = model is world or (task.init.sim is not None and init is task.init)
     if not solution.success or same_physics:
         return solution
-    state, t0 = task.init, time.perf_counter()
-    for action in solution.actions:
-        state = world.simulate(state, action)
-    solution = dataclasses.replace(solution, world_seconds=time.perf_counter() - t0)
+    state, clock = task.init, Stopwatch()
+    with clock.running():
+        for action in solution.actions:
+            state = world.simulate(state, action)
+    solution = dataclasses.replace(solution, world_seconds=clock.wall, world_cpu_seconds=clock.cpu)
     if task.goal_holds(abstract(state, world.goal_predicates)):
         return solution
     rollout = solution.rollout or Rollout(solution.actions)

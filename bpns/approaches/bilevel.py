@@ -101,6 +101,7 @@ def closed_loop_solution(out: ClosedLoopResult) -> Solution:
         replans=s.replans,
         rerefinements=s.rerefinements,
         world_seconds=run.world_seconds,
+        world_cpu_seconds=run.world_cpu_seconds,
     )
 
 

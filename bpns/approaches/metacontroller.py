@@ -164,6 +164,7 @@ class Metacontroller(Approach):
                 rollout=rollout,
                 replans=replans,
                 world_seconds=run.world_seconds,
+                world_cpu_seconds=run.world_cpu_seconds,
             )
 
         try:
@@ -212,6 +213,7 @@ class Metacontroller(Approach):
             rollout=run.rollout(),
             replans=replans,
             world_seconds=run.world_seconds,
+            world_cpu_seconds=run.world_cpu_seconds,
         )
 
 

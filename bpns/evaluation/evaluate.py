@@ -17,7 +17,6 @@ import functools
 import json
 import math
 import statistics
-import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
@@ -40,6 +39,7 @@ from bpns.execution.rollouts import Event, Rollout
 from bpns.planning.config import PlanningConfig
 from bpns.pools import make_pool, surviving_map
 from bpns.structs import Task
+from bpns.timing import Stopwatch
 
 
 @dataclass(frozen=True)
@@ -94,6 +94,10 @@ class TaskOutcome:
     replans: int = 0  # closed loop: divergences repaired
     rerefinements: int = 0  # closed loop: boundaries where the plan's rest was refined again
     world_seconds: float = 0.0  # of ``seconds``, those spent simulating the world
+    # the same two in CPU seconds of the process that solved the task (bpns.timing):
+    # unlike wall-clock time, not inflated by other processes sharing the machine
+    cpu_seconds: float | None = None
+    world_cpu_seconds: float = 0.0
 
     @property
     def agent_seconds(self) -> float:
@@ -102,6 +106,13 @@ class TaskOutcome:
         nominal world closed loop takes the model's segments over, so this is the time
         to compare with a nominal world's."""
         return self.seconds - self.world_seconds
+
+    @property
+    def agent_cpu_seconds(self) -> float:
+        """:attr:`agent_seconds` in CPU seconds (NaN where not recorded)."""
+        if self.cpu_seconds is None:
+            return math.nan
+        return self.cpu_seconds - self.world_cpu_seconds
 
     @property
     def sim_steps_per_step(self) -> float:
@@ -181,6 +192,13 @@ class EvalReport:
         return statistics.median(times) if times else math.nan
 
     @property
+    def median_agent_cpu_seconds(self) -> float:
+        """Median over solved tasks of :attr:`TaskOutcome.agent_cpu_seconds`; NaN if none
+        (or not recorded)."""
+        times = [o.agent_cpu_seconds for o in self.outcomes if o.solved]
+        return statistics.median(times) if times else math.nan
+
+    @property
     def mean_seconds(self) -> float:
         times = self._solved_times()
         return statistics.fmean(times) if times else math.nan
@@ -228,6 +246,7 @@ class EvalReport:
                 "median_seconds": _finite_or_none(self.median_seconds),
                 "mean_seconds": _finite_or_none(self.mean_seconds),
                 "median_agent_seconds": _finite_or_none(self.median_agent_seconds),
+                "median_agent_cpu_seconds": _finite_or_none(self.median_agent_cpu_seconds),
                 "mean_nodes_created": self.mean_nodes,
                 "median_sim_steps_per_step": _finite_or_none(self.median_sim_steps_per_step),
                 "mean_replans": self.mean_replans,
@@ -318,20 +337,21 @@ def solve_task(
     validation re-simulates the world's actions in the world; without one the plan is
     made and checked in ``env`` alone (``Approach.solve``). ``physics`` is the world's,
     recorded with the outcome."""
-    t0 = time.perf_counter()
-    if world is None:
-        world = env
-        result = approach.solve(task, rng, timeout)
-    else:
-        result = approach.solve_in_world(task, env, world, rng, timeout, execution or CLOSED_LOOP)
-    seconds = time.perf_counter() - t0
+    clock = Stopwatch()
+    with clock.running():
+        if world is None:
+            world = env
+            result = approach.solve(task, rng, timeout)
+        else:
+            execution = execution or CLOSED_LOOP
+            result = approach.solve_in_world(task, env, world, rng, timeout, execution)
     validated = None
     if result.success and validate:
         validated = plan_reaches_goal(world, task, result.actions)
     return TaskOutcome(
         index=index,
         solved=bool(result.success and validated is not False),
-        seconds=seconds,
+        seconds=clock.wall,
         reason=None if result.success else str(result.reason),
         num_actions=len(result.actions),
         nodes_created=result.nodes_created,
@@ -347,6 +367,8 @@ def solve_task(
         replans=result.replans,
         rerefinements=result.rerefinements,
         world_seconds=result.world_seconds,
+        cpu_seconds=clock.cpu,
+        world_cpu_seconds=result.world_cpu_seconds,
     )
 
 

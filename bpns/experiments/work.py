@@ -157,6 +157,8 @@ def _evaluate(job: CellJob) -> dict[str, Any]:
             "solved": o.solved,
             "seconds": o.seconds,
             "world_seconds": o.world_seconds,  # of seconds, simulating the world
+            "cpu_seconds": o.cpu_seconds,  # the same two in CPU seconds (bpns.timing)
+            "world_cpu_seconds": o.world_cpu_seconds,
             "reason": o.reason,
             "nodes_created": o.nodes_created,
             "samples": o.samples,

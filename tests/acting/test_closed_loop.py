@@ -149,6 +149,9 @@ def test_the_worlds_simulation_time_is_told_apart_from_the_agents():
     assert outcome.solved and 0.0 < outcome.world_seconds < outcome.seconds
     assert outcome.agent_seconds == outcome.seconds - outcome.world_seconds
     assert outcome.to_json()["world_seconds"] == outcome.world_seconds
+    # the same split in CPU seconds
+    assert 0.0 < outcome.world_cpu_seconds <= outcome.cpu_seconds
+    assert outcome.agent_cpu_seconds == outcome.cpu_seconds - outcome.world_cpu_seconds
     # planning alone, in the model: nothing is the world's
     planned = solve_task(planner, task, 0, model, 20.0, rng)
     assert planned.solved and planned.world_seconds == 0.0

@@ -203,6 +203,25 @@ def test_the_world_table_compares_the_agents_time_without_the_worlds_simulation(
     assert "| 4.00x | – |" in markdown_table(aggregate(records))
 
 
+def test_the_world_table_also_compares_the_agents_cpu_time_where_recorded():
+    records = [
+        _world_record("oracle", None, "nominal", "closed-loop", 2, tasks=2),
+        _world_record("oracle", None, "moderate", "closed-loop", 2, tasks=2),
+    ]
+    # wall-clock time inflated by a loaded machine in the moderate cell; CPU time is not
+    for t in records[0]["result"]["tasks"]:
+        t.update(seconds=1.0, world_seconds=0.0, cpu_seconds=1.0, world_cpu_seconds=0.0)
+    for t in records[1]["result"]["tasks"]:
+        t.update(seconds=6.0, world_seconds=2.0, cpu_seconds=2.5, world_cpu_seconds=1.0)
+    table = markdown_table(aggregate(records))
+    assert "| Agent time vs nominal | Agent CPU vs nominal |" in table
+    assert "| 4.00x | 1.50x |" in table
+    # a cell stored before CPU time was recorded (or recorded as None): no ratio
+    for t in records[0]["result"]["tasks"]:
+        t["cpu_seconds"] = None
+    assert "| 4.00x | – |" in markdown_table(aggregate(records))
+
+
 def test_rows_of_corrected_skills_are_their_own_and_say_so():
     plain = _world_record("bpns", 10, "moderate", "closed-loop", 1, tasks=2)
     fixed = _world_record("bpns", 10, "moderate", "closed-loop", 2, tasks=2)

@@ -127,6 +127,7 @@ def test_finished_cells_hold_results_and_point_at_their_inputs(resumed_sweep):
     assert len(oracle["result"]["tasks"]) == 1
     (task,) = oracle["result"]["tasks"]  # the nominal world: nothing simulated apart
     assert task["world_seconds"] == 0.0 and task["seconds"] > 0.0
+    assert task["world_cpu_seconds"] == 0.0 and task["cpu_seconds"] > 0.0
     assert (store.root / "artifacts/skills/cover-n3-seed0/skills.json").is_file()
     assert (store.root / "artifacts/demos/cover-seed0.h5").is_file()
 
