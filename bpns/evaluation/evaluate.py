@@ -195,7 +195,7 @@ class EvalReport:
     def median_agent_cpu_seconds(self) -> float:
         """Median over solved tasks of :attr:`TaskOutcome.agent_cpu_seconds`; NaN if none
         (or not recorded)."""
-        times = [o.agent_cpu_seconds for o in self.outcomes if o.solved]
+        times = [t for o in self.outcomes if o.solved and math.isfinite(t := o.agent_cpu_seconds)]
         return statistics.median(times) if times else math.nan
 
     @property

@@ -49,6 +49,21 @@ def _report(outcomes, label="BPNS") -> EvalReport:
     )
 
 
+def test_agent_cpu_time_is_summarised_over_solved_tasks_that_recorded_it():
+    timed = [
+        dataclasses.replace(_outcome(i, True, 9.0), cpu_seconds=cpu, world_cpu_seconds=1.0)
+        for i, cpu in enumerate((2.0, 4.0))
+    ]
+    untimed = _outcome(2, True, 9.0)  # e.g. an outcome made without a CPU clock
+    failed = dataclasses.replace(_outcome(3, False, 60.0), cpu_seconds=50.0)
+    report = _report([*timed, untimed, failed])
+    assert math.isnan(untimed.agent_cpu_seconds)
+    assert report.median_agent_cpu_seconds == 2.0  # median of 1.0 and 3.0
+    assert report.to_json()["summary"]["median_agent_cpu_seconds"] == 2.0
+    assert report.to_json()["tasks"][0]["cpu_seconds"] == 2.0
+    assert math.isnan(_report([untimed]).median_agent_cpu_seconds)
+
+
 def test_times_are_summarised_over_solved_tasks_and_nodes_over_all():
     report = _report(
         [_outcome(0, True, 1.0, 2), _outcome(1, True, 3.0, 4), _outcome(2, False, 60.0, 9)]
