@@ -86,7 +86,9 @@ class SeedResult:
             mean_replans=float(r.get("mean_replans", 0.0)),
             median_plan_steps=_median_plan_steps(r["tasks"]),
             median_agent_seconds=_median_agent_seconds(r["tasks"]),
-            median_agent_cpu_seconds=_median_agent_seconds(r["tasks"], "cpu_"),
+            median_agent_cpu_seconds=_median_agent_seconds(
+                r["tasks"], "cpu_seconds", "world_cpu_seconds"
+            ),
             trials=tuple((str(t["world"]), bool(t["solved"])) for t in r["tasks"] if "world" in t),
         )
 
@@ -105,11 +107,12 @@ def _median_sim_ratio(tasks: Iterable[dict[str, Any]]) -> float | None:
     return statistics.median(ratios) if ratios else None
 
 
-def _median_agent_seconds(tasks: Iterable[dict[str, Any]], kind: str = "") -> float | None:
-    """Solving time less the world's simulation (TaskOutcome.agent_seconds; with
-    ``kind="cpu_"`` in CPU seconds); None when nothing was solved or a cell predates the
-    times being recorded."""
-    total, world = f"{kind}seconds", f"world_{kind}seconds"
+def _median_agent_seconds(
+    tasks: Iterable[dict[str, Any]], total: str = "seconds", world: str = "world_seconds"
+) -> float | None:
+    """Median over solved tasks of ``total`` less ``world``: the solving time less the
+    world's simulation (TaskOutcome.agent_seconds; pass the ``cpu_seconds`` keys for CPU
+    seconds); None when nothing was solved or a cell predates the times being recorded."""
     solved = [t for t in tasks if t["solved"]]
     if not solved or any(t.get(total) is None or world not in t for t in solved):
         return None
