@@ -272,9 +272,9 @@ def _finite_or_none(x: float) -> float | None:
 
 TABLE_HEADER = (
     "| Approach | Demos | Solved | Median time (s) | Mean time (s) | Median agent time (s) "
-    "| Nodes created | Sim steps / plan step | Learning time (s) | Solved, 95 % CI "
-    "| Replans / task |\n"
-    "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    "| Median agent CPU (s) | Nodes created | Sim steps / plan step | Learning time (s) "
+    "| Solved, 95 % CI | Replans / task |\n"
+    "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
 )
 
 
@@ -287,7 +287,8 @@ def table_row(report: EvalReport) -> str:
         f"| {report.label} | {report.num_demos if report.num_demos is not None else '–'} "
         f"| {report.num_solved}/{report.num_tasks} ({report.solved_percent:.1f}%) "
         f"| {num(report.median_seconds, '.2f')} | {num(report.mean_seconds, '.2f')} "
-        f"| {num(report.median_agent_seconds, '.2f')} | {report.mean_nodes:.1f} "
+        f"| {num(report.median_agent_seconds, '.2f')} "
+        f"| {num(report.median_agent_cpu_seconds, '.2f')} | {report.mean_nodes:.1f} "
         f"| {num(report.median_sim_steps_per_step, '.1f')} "
         f"| {num(report.learning_seconds, '.1f')} "
         f"| {100 * low:.1f}-{100 * high:.1f} | {report.mean_replans:.2f} |"

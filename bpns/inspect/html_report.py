@@ -120,7 +120,8 @@ def _world_split(reports: Sequence[EvalReport]) -> str:
 def _summary_table(reports: Sequence[EvalReport]) -> str:
     rows = [
         "<tr><th>Approach</th><th>Demos</th><th>Solved</th><th>Median time (s)</th>"
-        "<th>Mean time (s)</th><th>Median agent time (s)</th><th>Nodes created</th>"
+        "<th>Mean time (s)</th><th>Median agent time (s)</th><th>Median agent CPU (s)</th>"
+        "<th>Nodes created</th>"
         "<th>Sim steps / plan step</th>"
         "<th>Failures</th></tr>"
     ]
@@ -133,6 +134,7 @@ def _summary_table(reports: Sequence[EvalReport]) -> str:
             f'<td class="num">{_num(r.median_seconds, ".2f")}</td>'
             f'<td class="num">{_num(r.mean_seconds, ".2f")}</td>'
             f'<td class="num">{_num(r.median_agent_seconds, ".2f")}</td>'
+            f'<td class="num">{_num(r.median_agent_cpu_seconds, ".2f")}</td>'
             f'<td class="num">{r.mean_nodes:.1f}</td>'
             f'<td class="num">{_num(r.median_sim_steps_per_step, ".1f")}</td>'
             f"<td>{_esc(failures)}</td></tr>"

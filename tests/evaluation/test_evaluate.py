@@ -62,6 +62,11 @@ def test_agent_cpu_time_is_summarised_over_solved_tasks_that_recorded_it():
     assert report.to_json()["summary"]["median_agent_cpu_seconds"] == 2.0
     assert report.to_json()["tasks"][0]["cpu_seconds"] == 2.0
     assert math.isnan(_report([untimed]).median_agent_cpu_seconds)
+    header, _, row = markdown_table([report]).strip().splitlines()
+    cpu_column = header.split("|").index(" Median agent CPU (s) ")
+    assert row.split("|")[cpu_column].strip() == "2.00"
+    untimed_row = markdown_table([_report([untimed])]).strip().splitlines()[-1]
+    assert untimed_row.split("|")[cpu_column].strip() == "–"
 
 
 def test_times_are_summarised_over_solved_tasks_and_nodes_over_all():
