@@ -7,6 +7,9 @@ path are forbidden and paths are capped in length. To keep unsolvable problems f
 avoid re-expanding popular states endlessly, each abstract state is expanded at most
 ``max_skeletons`` times (for A* with a consistent heuristic this is the classic
 k-shortest-paths bound: the k best plans never need a state's (k+1)-th best prefix).
+With extra operator costs the same bound is applied lazily: while looking for the
+(j+1)-th plan a state is popped at most j+1 times, later pops being put off until a plan
+is found or nothing else is left (so no plan is lost).
 
 The strategy is only an ordering function ``priority(g, h)``; ties are broken by
 insertion order, so results are deterministic.
@@ -135,17 +138,43 @@ def skeletons(
     ]
     pops: dict[int, int] = {}
     n_yielded = 0
+    # With extra costs (a restart after demotion) the heuristic does not see them, and
+    # the orders of many steps reach the same states at an f below the cheapest plan:
+    # a tree search pops each of those states up to max_skeletons times. There the
+    # bound is applied lazily: the next plan needs no more pops of a state than the
+    # plans found so far (yielded or skipped) + 1, and a node popped beyond that waits
+    # in ``deferred`` until another plan is found or nothing else is left (put off,
+    # never lost). Without extra costs the bound stays max_skeletons: putting nodes
+    # off reorders plans of equal priority, and there it saves nothing measurable.
+    bound = 1 if extra_cost is not None else max_skeletons
+    deferred: list[tuple[tuple[float, ...], int, _Node]] = []
+
+    def admit_deferred() -> None:
+        nonlocal bound
+        bound += 1
+        for entry in deferred:
+            heapq.heappush(frontier, entry)
+        deferred.clear()
+
     goal = problem.goal
     pre, add, delete = problem.pre, problem.add, problem.delete
-    while frontier:
+    while frontier or deferred:
         check_deadline(deadline)
-        _, _, node = heapq.heappop(frontier)
+        if not frontier:
+            admit_deferred()
+            continue
+        entry = heapq.heappop(frontier)
+        node = entry[2]
         state = node.state
         found = _extract(problem, node) if state & goal == goal else None
         if found is not None and found.operators in skip:
+            admit_deferred()
             continue
         k = pops.get(state, 0) + 1
         if k > max_skeletons:
+            continue
+        if k > bound:
+            deferred.append(entry)
             continue
         pops[state] = k
         if found is not None:
@@ -154,6 +183,7 @@ def skeletons(
             yield found
             if n_yielded >= max_skeletons:
                 return
+            admit_deferred()
             continue
         if node.depth >= max_length:
             continue

@@ -88,3 +88,17 @@ def test_a_demotion_cost_must_be_finite_and_positive(cost):
         PlanningConfig(demote_refuted=cost)
     with pytest.raises(ValueError, match="demot"):
         RefutedAchievers(cost)
+
+
+def test_a_search_restarted_with_extra_costs_does_not_expand_every_order_of_the_presses():
+    """Six near buttons and two far: once the hand is refuted at a far button, the
+    restarted search must not pop each abstract state once per order of the presses that
+    reach it (the heuristic does not see the extra cost, so every order looks cheap)."""
+    task = toy.make_task([1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 8.0, 8.5])
+    cfg = PlanningConfig(n_abstract=1000, n_samples=3, timeout=60.0, demote_refuted=4.0)
+    result = plan(task, toy.skills(), ENV, cfg, np.random.default_rng(0))
+    assert result.success, result.reason
+    names = [op.name for op in result.skeleton.operators]
+    assert names.count("PressDirect") == 6 and names.count("PressWithStick") == 2
+    # every pop of a state bounded by max_skeletons alone created 40,898 nodes here
+    assert result.stats.nodes_created < 2_000

@@ -1,3 +1,4 @@
+import heapq
 import itertools
 import math
 import time
@@ -182,3 +183,56 @@ def test_resuming_relaxes_only_the_first_step():
     go = toy.op("Go", pre={"AtStart", "Moved"}, add={"Open"}, delete={"AtStart"})
     p = toy.problem([back, go], init={"Ready", "AtStart"}, goal={"Open"})
     assert list(skeletons(p, None, astar, max_skeletons=4, max_length=5, resume=True)) == []
+
+
+def _unbounded_skeletons(problem, heuristic, max_skeletons, max_length, extra_cost):
+    """The specification: A* over paths, each state popped up to ``max_skeletons`` times
+    as soon as the priority order reaches it (no pop is ever put off)."""
+    order = itertools.count()
+    h0 = heuristic(problem.init)
+    frontier = [((h0, h0), next(order), (problem.init,), (), 0.0)]
+    pops, plans = {}, []
+    while frontier and len(plans) < max_skeletons:
+        _, _, states, ops, g = heapq.heappop(frontier)
+        state = states[-1]
+        pops[state] = pops.get(state, 0) + 1
+        if pops[state] > max_skeletons:
+            continue
+        if state & problem.goal == problem.goal:
+            plans.append(tuple(problem.operators[i] for i in ops))
+            continue
+        if len(ops) >= max_length:
+            continue
+        for i, pre in enumerate(problem.pre):
+            child = (state & ~problem.delete[i]) | problem.add[i]
+            if state & pre != pre or child in states or math.isinf(h := heuristic(child)):
+                continue
+            cost = g + 1.0 + extra_cost[i]
+            node = ((cost + h, h), next(order), (*states, child), (*ops, i), cost)
+            heapq.heappush(frontier, node)
+    return plans
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_with_extra_costs_pops_put_off_change_no_plan_cost_in_the_order(seed):
+    """Extra costs make the search put off repeated pops of a state until another plan is
+    found; the costs of the plans, in the order yielded, are those of the unbounded
+    search (only plans of equal cost may swap places), each plan valid and new."""
+    rng = np.random.default_rng(seed)
+    p = toy.random_problem(rng, n_atoms=7, n_ops=12)
+    extra = [float(rng.choice([0.0, 0.0, 4.0])) for _ in p.operators]
+    got = list(skeletons(p, LMCut(p), astar, max_skeletons=30, max_length=8, extra_cost=extra))
+    want = _unbounded_skeletons(p, LMCut(p), 30, 8, extra)
+    assert [pl.cost for pl in got] == [_cost(p, ops, extra) for ops in want]
+    assert len({pl.operators for pl in got}) == len(got)
+    for pl in got:
+        atoms = pl.atoms[0]
+        for op, expected in zip(pl.operators, pl.atoms[1:], strict=True):
+            assert op.applicable(atoms) and op.apply(atoms) == expected
+            atoms = expected
+        assert p.decode(p.goal) <= atoms
+
+
+def _cost(problem, operators, extra):
+    index = {op: i for i, op in enumerate(problem.operators)}
+    return sum(1.0 + extra[index[op]] for op in operators)
