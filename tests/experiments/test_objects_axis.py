@@ -88,6 +88,8 @@ def _costly_record(approach: str, count: int, seconds: float, plan_steps: int):
     record["result"]["mean_nodes_created"] = 10.0 * count**3
     for task in record["result"]["tasks"]:
         task.update(seconds=seconds, plan_steps=plan_steps, sim_steps=2 * count, num_actions=2)
+        # the CPU seconds grow as count^3 (the world's share taken off)
+        task.update(cpu_seconds=0.01 * count**3 + 1.0, world_cpu_seconds=1.0)
     return record
 
 
@@ -105,9 +107,21 @@ def test_growth_table_fits_time_against_count_and_plan_length():
     assert growth["Oracle"].nodes_vs_count == pytest.approx(3.0)
     assert growth["Oracle"].sim_steps_vs_count == pytest.approx(1.0)
     assert growth["BPNS"].time_vs_count == pytest.approx(1.0)
+    assert growth["Oracle"].cpu_time_vs_plan_steps == pytest.approx(3.0)
     table = growth_table(aggregate(GROWING))
-    assert "| cover | Oracle | – | 2, 4, 8 | 2.00 | 2.00 | 3.00 | 1.00 |" in table
+    assert "| cover | Oracle | – | 2, 4, 8 | 2.00 | 2.00 | 3.00 | 3.00 | 1.00 |" in table
     assert growth_table(aggregate([_eval_record(0, "oracle", None, [1.0])])) == ""
+
+
+def test_cells_without_cpu_records_fit_no_cpu_exponent():
+    old = [_costly_record("oracle", c, 0.1 * c**2, 2 * c) for c in (2, 4, 8)]
+    for record in old:
+        for task in record["result"]["tasks"]:
+            del task["cpu_seconds"], task["world_cpu_seconds"]
+    (growth,) = growth_of(aggregate(old))
+    assert growth.time_vs_plan_steps == pytest.approx(2.0)
+    assert growth.cpu_time_vs_plan_steps is None
+    assert "| 2.00 | 2.00 | – | 3.00 |" in growth_table(aggregate(old))
 
 
 def test_cost_figure_has_a_row_of_panels_per_environment(tmp_path):
