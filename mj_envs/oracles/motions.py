@@ -25,6 +25,7 @@ Conventions shared by every function here:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -218,6 +219,12 @@ class BackOffToStart:
     that stopped at its horizon: at the travel height, holding the stick, is where a
     demonstrated second press starts). None: always let go.
 
+    ``holds``: a test of the observed state, ``holds(seen) -> bool``, that the hand still
+    carries something though the ``grasped`` reading dropped (a pad slipped off a stick
+    that is still between the fingers, rising with the hand). While it says so the
+    back-off closes the fingers again and rises, as for ``keep_held``: letting go there
+    drops what a re-closed grip would have kept. None: only ``keep_held`` decides.
+
     For a Panda whose robot object (type ``robot``) has the hand's (x, y, z, fingers)
     first and whose action is ``(dx, dy, dz, grip)`` (+1 opens).
     """
@@ -226,12 +233,11 @@ class BackOffToStart:
     wait_open: bool = True
     tol: float = 0.02
     keep_held: str | None = None
+    holds: Callable[[State], bool] | None = None
 
     def __call__(self, env: object, seen: State, start: State) -> np.ndarray | None:
         robot = next(o for o in seen.data if o.type.name == "robot")
-        if self.keep_held is not None and any(
-            o.type.name == self.keep_held and seen.get(o, "grasped") > 0.5 for o in seen.data
-        ):
+        if self._keeps(seen):
             now = hand(seen, robot)
             up = np.array([now[0], now[1], self.height])
             return None if at(seen, robot, up, self.tol) else move_action(seen, robot, up, -1.0)
@@ -244,6 +250,14 @@ class BackOffToStart:
         if now[2] < self.height - self.tol and np.max(np.abs(goal[:2] - now[:2])) > self.tol:
             goal = np.array([now[0], now[1], self.height])  # straight up first
         return move_action(seen, robot, goal, 1.0)
+
+    def _keeps(self, seen: State) -> bool:
+        """Does the hand carry something to keep (``keep_held`` or ``holds``)?"""
+        if self.keep_held is not None and any(
+            o.type.name == self.keep_held and seen.get(o, "grasped") > 0.5 for o in seen.data
+        ):
+            return True
+        return self.holds is not None and bool(self.holds(seen))
 
 
 def grasp_action(

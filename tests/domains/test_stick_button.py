@@ -21,6 +21,7 @@ from mj_envs.domains.stick_button.behaviours import (
     SAFE_Z,
     grasp_point,
     move_action,
+    stick_in_hand,
 )
 from mj_envs.domains.stick_button.rules import BUTTON, GRASPED, PRESSED, STICK_HEIGHT
 from mj_envs.domains.stick_button.skills import APPROACH_CLEARANCE
@@ -315,4 +316,33 @@ def test_the_back_off_keeps_a_held_stick_and_only_rises_to_the_travel_height(env
     assert done and GRASPED.holds(end, (robot, stick))
     assert abs(end.get(robot, "z") - SAFE_Z) <= 0.02
     assert np.all(np.abs(end.data[robot][:2] - low.data[robot][:2]) <= 0.02)  # straight up
+    assert end.get(stick, "z") > SAFE_Z - 0.05  # carried up with the hand
+
+
+def test_a_stick_between_the_fingers_is_in_hand_though_no_pad_touches_it(env):
+    task = env.task(0, 0, True)
+    robot, stick = _obj(task.init, "robot"), _obj(task.init, "stick")
+    held = _grasp_attempt(env, task, offset=GRASP_MIN + 0.02)
+    grasped = [GRASPED.holds(x, (robot, stick)) for x in held]
+    assert all(stick_in_hand(x) for x, g in zip(held, grasped, strict=True) if g)
+    closing = held[grasped.index(True) - 1]  # closing round it, the pads not on it yet
+    assert not grasped[grasped.index(True) - 1] and stick_in_hand(closing)
+    assert not stick_in_hand(task.init)  # the hand far above it
+    shut = _grasp_attempt(env, task, offset=0.06)[-1]  # closed on the holder's walls
+    assert shut.get(robot, "fingers") < 0.01 and not stick_in_hand(shut)
+
+
+def test_the_back_off_closes_again_on_a_stick_still_between_the_fingers(env):
+    # under latency a press can shake one pad off the stick while the hand still lifts
+    # it: the grasped reading drops, and a back-off that let go dropped the stick
+    task = env.task(0, 0, True)
+    robot, stick = _obj(task.init, "robot"), _obj(task.init, "stick")
+    held = _grasp_attempt(env, task, offset=GRASP_MIN + 0.02)
+    grasped = [GRASPED.holds(x, (robot, stick)) for x in held]
+    loose = held[grasped.index(True) - 1]
+    assert not GRASPED.holds(loose, (robot, stick)) and stick_in_hand(loose)
+    done, run = _backed_off(env, task, loose)
+    end = run.state
+    assert done and GRASPED.holds(end, (robot, stick))
+    assert abs(end.get(robot, "z") - SAFE_Z) <= 0.02
     assert end.get(stick, "z") > SAFE_Z - 0.05  # carried up with the hand

@@ -18,7 +18,9 @@ from bpns.structs import Object, State
 from mj_envs.domains.stick_button.rules import (
     CAP_REST_TOP,
     HOLDER_LENGTH,
+    STICK,
     STICK_LENGTH,
+    STICK_WIDTH,
     TIP_INSET,
 )
 from mj_envs.oracles import motions
@@ -184,3 +186,44 @@ def pick_phases(robot: Object, stick: Object, offset: float) -> list[Phase]:
         return action
 
     return [rise, travel, descend, close, lift]
+
+
+# A stick still in the hand after a pad slipped off it: the hand's grip site lies over
+# the stick's footprint, between its top and a little below its centre, and the fingers
+# are neither closed past the stick nor opened off it (fingers: per finger, metres).
+IN_HAND_LATERAL = 0.012  # grip site to the stick's centre line, across it (m)
+IN_HAND_DZ = (-0.025, 0.030)  # grip site above the stick's centre (m): grasps seen -0.02..+0.02
+IN_HAND_FINGERS = (STICK_WIDTH / 2 - 0.003, STICK_WIDTH / 2 + 0.01)
+
+
+def stick_in_hand(state: State) -> bool:
+    """Is a stick between the fingers, though perhaps not touched by both pads?
+
+    What the back-off keeps (:class:`mj_envs.oracles.motions.BackOffToStart` ``holds``):
+    under two steps of latency a press can shake one pad off the stick while the hand
+    still lifts it; reading ``grasped`` alone, the back-off opened the hand and dropped it.
+    """
+    robot = next(o for o in state.data if o.type.name == "robot")
+    h = state.data[robot]
+    fingers = state.get(robot, "fingers")
+    if not IN_HAND_FINGERS[0] <= fingers <= IN_HAND_FINGERS[1]:
+        return False
+    for stick in state.objects_of_type(STICK):
+        s = state.data[stick]
+        axis = s[3:5] - s[0:2]
+        length = float(np.linalg.norm(axis))
+        if length < 1e-9:
+            continue
+        u = axis / length
+        d = h[0:2] - s[0:2]
+        along = float(d @ u)
+        lateral = float(d[0] * u[1] - d[1] * u[0])
+        half = STICK_LENGTH / 2
+        dz = float(h[2] - s[2])
+        if (
+            -half <= along <= half
+            and abs(lateral) <= IN_HAND_LATERAL
+            and IN_HAND_DZ[0] <= dz <= IN_HAND_DZ[1]
+        ):
+            return True
+    return False

@@ -13,7 +13,7 @@ from bpns.env.object_counts import ObjectCounts
 from bpns.structs import Object, Predicate, Task, Type
 from mj_envs.base import MujocoEnv, TaskLayout, observe, perturbed, with_objects
 from mj_envs.domains.stick_button import scene
-from mj_envs.domains.stick_button.behaviours import SAFE_Z
+from mj_envs.domains.stick_button.behaviours import SAFE_Z, stick_in_hand
 from mj_envs.domains.stick_button.demonstrator import StickButtonDemonstrator
 from mj_envs.domains.stick_button.rules import (
     ABOVE_NO_BUTTON,
@@ -62,7 +62,7 @@ class StickButtonEnv(MujocoEnv):
         with_objects=with_objects,
         motion_dims=(0, 1, 2),  # hand translation; not the fingers
         # up, keeping the stick if it is still held; else open, up, back to the start pose
-        back_off=BackOffToStart(SAFE_Z, keep_held="stick"),
+        back_off=BackOffToStart(SAFE_Z, keep_held="stick", holds=stick_in_hand),
     )
     controller_config = CONTROLLER
 
