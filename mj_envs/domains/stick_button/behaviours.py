@@ -190,10 +190,13 @@ def pick_phases(robot: Object, stick: Object, offset: float) -> list[Phase]:
 
 # A stick still in the hand after a pad slipped off it: the hand's grip site lies over
 # the stick's footprint, between its top and a little below its centre, and the fingers
-# are neither closed past the stick nor opened off it (fingers: per finger, metres).
-IN_HAND_LATERAL = 0.012  # grip site to the stick's centre line, across it (m)
-IN_HAND_DZ = (-0.025, 0.030)  # grip site above the stick's centre (m): grasps seen -0.02..+0.02
-IN_HAND_FINGERS = (STICK_WIDTH / 2 - 0.003, STICK_WIDTH / 2 + 0.01)
+# are neither closed past the stick nor opened off it (fingers: per finger, metres). The
+# test reads the *observed* state, whose every feature a `hard` world blurs by 5 mm, so
+# each band is that much wider than the geometry: closing once over nothing costs a
+# back-off less than dropping a stick (and once the pads close on it, `grasped` holds).
+IN_HAND_LATERAL = 0.022  # grip site to the stick's centre line, across it (m)
+IN_HAND_DZ = (-0.035, 0.040)  # grip site above the stick's centre (m): grasps seen -0.02..+0.02
+IN_HAND_FINGERS = (STICK_WIDTH / 2 - 0.009, STICK_WIDTH / 2 + 0.017)
 
 
 def stick_in_hand(state: State) -> bool:
