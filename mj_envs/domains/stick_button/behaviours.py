@@ -18,6 +18,7 @@ from bpns.structs import Object, State
 from mj_envs.domains.stick_button.rules import (
     CAP_REST_TOP,
     HOLDER_LENGTH,
+    ROBOT,
     STICK,
     STICK_LENGTH,
     STICK_WIDTH,
@@ -206,26 +207,24 @@ def stick_in_hand(state: State) -> bool:
     under two steps of latency a press can shake one pad off the stick while the hand
     still lifts it; reading ``grasped`` alone, the back-off opened the hand and dropped it.
     """
-    robot = next(o for o in state.data if o.type.name == "robot")
-    h = state.data[robot]
+    (robot,) = state.objects_of_type(ROBOT)
     fingers = state.get(robot, "fingers")
     if not IN_HAND_FINGERS[0] <= fingers <= IN_HAND_FINGERS[1]:
         return False
+    hand = np.array([state.get(robot, "x"), state.get(robot, "y")])
     for stick in state.objects_of_type(STICK):
-        s = state.data[stick]
-        axis = s[3:5] - s[0:2]
+        centre = np.array([state.get(stick, "x"), state.get(stick, "y")])
+        axis = np.array([state.get(stick, "tip_x"), state.get(stick, "tip_y")]) - centre
         length = float(np.linalg.norm(axis))
         if length < 1e-9:
             continue
-        u = axis / length
-        d = h[0:2] - s[0:2]
-        along = float(d @ u)
-        lateral = float(d[0] * u[1] - d[1] * u[0])
-        half = STICK_LENGTH / 2
-        dz = float(h[2] - s[2])
+        d = hand - centre
+        along = float(d @ axis) / length  # along the stick, from its centre
+        across = float(d[0] * axis[1] - d[1] * axis[0]) / length
+        dz = state.get(robot, "z") - state.get(stick, "z")
         if (
-            -half <= along <= half
-            and abs(lateral) <= IN_HAND_LATERAL
+            abs(along) <= STICK_LENGTH / 2
+            and abs(across) <= IN_HAND_LATERAL
             and IN_HAND_DZ[0] <= dz <= IN_HAND_DZ[1]
         ):
             return True
