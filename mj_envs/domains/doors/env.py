@@ -46,7 +46,8 @@ Rules (final, as simulated):
 * **Predicates.** InRoom(robot, room): the base's centre is in the room's cell.
   InDoorway(robot, door): the base's centre within 0.45 m along and 0.75 m across the
   doorway. InMainRoom(robot, room): in the room and in no doorway. TouchingDoor(robot,
-  door): a finger geom touches the door's handle (MuJoCo contact list). DoorIsOpen(door):
+  door): a finger geom touches the door's handle (MuJoCo contact list), the fingers open
+  wider than half the wing's width (closed past it they hold nothing). DoorIsOpen(door):
   the leaf slid >= 0.8 m (joint reading). DoorInRoom(door, room) and
   DoorsShareRoom(door, door): static. Contact-related: TouchingDoor, InRoom (paper).
 * **Skills.** MoveToDoor (drive to the door's approach pose on a planned path, then put
@@ -88,6 +89,7 @@ from mj_envs.domains.doors.rules import (
     IN_ROOM,
     ROBOT,
     ROOM,
+    TOUCH_MIN_OPENING,
     TOUCHING_DOOR,
     required_angle,
 )
@@ -310,9 +312,15 @@ class DoorsEnv(MujocoEnv):
         return ids
 
     def touched_doors(self, world: World) -> set[int]:
-        """Doors whose handle wing is in contact with a finger geom."""
+        """Doors whose handle wing is in contact with a finger geom while the fingers are
+        open wider than :data:`TOUCH_MIN_OPENING`: fingers closed past the wing's
+        half-width hold nothing between them, and their touch from the side or from
+        below (a grip the wing slipped out of) is no TouchingDoor a turn could start
+        from."""
         ids = self._ids(world)
         d = world.data
+        if d.qpos[ids["finger_q"]] <= TOUCH_MIN_OPENING:
+            return set()
         wings = {g: k for k, g in enumerate(ids["wing"])}
         fingers = ids["finger_geoms"]
         out: set[int] = set()

@@ -37,6 +37,9 @@ HANDLE_TOLERANCE = 0.04  # rad: the latch releases within this of the door's ang
 KNOB_ALONG = 0.52  # the handle sits on the wall top beside the doorway, along +u
 KNOB_Z = 0.0  # height of the handle's wing (centre)
 WING_HALF = (0.045, 0.011, 0.012)  # the wing the fingers close on (along its x)
+# TouchingDoor needs the fingers (each finger's travel, m) open wider than this: a grip
+# closes at about WING_HALF[1]; closed past half of it, the wing is not between them
+TOUCH_MIN_OPENING = 0.006
 # -- robot poses relative to a door ----------------------------------------------------------
 APPROACH_ALONG = 0.15  # where the base stands to reach the handle (along u) ...
 APPROACH_DEPTH = 0.55  # ... and how far from the wall's centre line (along +-n)

@@ -42,6 +42,7 @@ from mj_envs.domains.doors.rules import (
     ROOM,
     ROOM_SIZE,
     TOUCHING_DOOR,
+    WING_HALF,
     door_frame,
     required_angle,
 )
@@ -193,17 +194,31 @@ def reach_handle(state: State, robot: Object, door: Object) -> np.ndarray:
     within 0.05 rad of it, and goes on while they stay within looser bounds (1.5x,
     0.15 rad; the open fingers clear the wing by 24 mm): without that hysteresis a
     hand that rings about its target (two steps of command latency) meets the strict
-    bounds only for a step at a time and hovers above the wing until its horizon."""
+    bounds only for a step at a time and hovers above the wing until its horizon.
+
+    A hand low beside the wing (or under it) that does not touch it and is outside those
+    bounds first rises straight up, its fingers and wrist as they are (turning or
+    opening them there catches the wing: a touch that is no grasp), then comes down
+    again as above. Without that a hand whose grip the wing had slipped out of stayed
+    closed on nothing, and a replan from there never refined. (Finger widths are not
+    read down there: observation noise is of their size.)"""
     xy, yaw, hand, wrist, fingers = _robot(state, robot)
     knob = np.array([state.get(door, "knob_x"), state.get(door, "knob_y"), KNOB_Z])
     dw = grasp_wrist_delta(state, robot, door)
     err_xy = float(np.max(np.abs(knob[:2] - hand[:2])))
     descending = hand[2] < knob[2] + ABOVE - DESCENDING
     aligned = abs(dw) < (0.15 if descending else 0.05)
-    xy_tol = 1.5 * POS_TOL if descending else POS_TOL
-    if hand[2] > knob[2] + 0.02 and (err_xy > xy_tol or not aligned or fingers < FINGERS_OPEN):
+    off = err_xy > (1.5 * POS_TOL if descending else POS_TOL) or not aligned
+    low = hand[2] <= knob[2] + 0.02
+    bottom = hand[2] <= knob[2] + 0.004
+    under = hand[2] < knob[2] - 1.25 * WING_HALF[2]
+    missed = low and state.get(door, "touched") < 0.5 and (off or under)
+    if missed:  # straight up, fingers and wrist as they are, clear of the wing
+        a, _ = _hand_to(state, robot, hand + np.array([0, 0, ABOVE]), wrist, 0.0)
+        return a
+    if not low and (off or fingers < FINGERS_OPEN):
         a, _ = _hand_to(state, robot, knob + np.array([0, 0, ABOVE]), wrist, 1.0)
-    elif hand[2] > knob[2] + 0.004:
+    elif not bottom:
         a, _ = _hand_to(state, robot, knob, wrist, 1.0, speed=0.01)
     else:
         a, _ = _hand_to(state, robot, knob, wrist, -1.0, speed=0.005)
