@@ -196,12 +196,12 @@ def reach_handle(state: State, robot: Object, door: Object) -> np.ndarray:
     hand that rings about its target (two steps of command latency) meets the strict
     bounds only for a step at a time and hovers above the wing until its horizon.
 
-    A hand low beside the wing (or under it) that does not touch it and is outside those
-    bounds first rises straight up, its fingers and wrist as they are (turning or
-    opening them there catches the wing: a touch that is no grasp), then comes down
-    again as above. Without that a hand whose grip the wing had slipped out of stayed
-    closed on nothing, and a replan from there never refined. (Finger widths are not
-    read down there: observation noise is of their size.)"""
+    A hand low beside the wing with its fingers closed, outside those bounds (or one
+    under the wing), that does not touch it first rises straight up, its fingers and
+    wrist as they are (turning or opening them there catches the wing: a touch that is
+    no grasp), then comes down again as above. Without that a hand whose grip the wing
+    had slipped out of stayed closed on nothing, and a replan from there never refined.
+    A low hand with open fingers aligns as it descends, as before."""
     xy, yaw, hand, wrist, fingers = _robot(state, robot)
     knob = np.array([state.get(door, "knob_x"), state.get(door, "knob_y"), KNOB_Z])
     dw = grasp_wrist_delta(state, robot, door)
@@ -212,7 +212,8 @@ def reach_handle(state: State, robot: Object, door: Object) -> np.ndarray:
     low = hand[2] <= knob[2] + 0.02
     bottom = hand[2] <= knob[2] + 0.004
     under = hand[2] < knob[2] - 1.25 * WING_HALF[2]
-    missed = low and state.get(door, "touched") < 0.5 and (off or under)
+    closed = fingers < FINGERS_GRIP  # too closed to pass the wing: nothing between them
+    missed = low and state.get(door, "touched") < 0.5 and ((off and closed) or under)
     if missed:  # straight up, fingers and wrist as they are, clear of the wing
         a, _ = _hand_to(state, robot, hand + np.array([0, 0, ABOVE]), wrist, 0.0)
         return a
