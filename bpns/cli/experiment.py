@@ -22,6 +22,7 @@ from bpns.cli.common import (
     fraction,
     path_arg,
     positive_float,
+    steps_or_all,
     whole_at_least,
 )
 from bpns.cli.paths import check_free_space, check_output_dir
@@ -144,6 +145,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "observation advanced by the commands in flight; default: off)",
     )
     parser.add_argument(
+        "--check-ahead",
+        type=steps_or_all,
+        metavar="N|all",
+        help="closed-loop eval cells run with `bpns eval --check-ahead N` (at a deviated "
+        "boundary simulate N steps of the plan's rest again; default: all of them)",
+    )
+    parser.add_argument(
         "--corrections",
         nargs="+",
         metavar="PRESET|NAME=VALUE",
@@ -202,6 +210,7 @@ def sweep_config(args: argparse.Namespace) -> SweepConfig:
             world_speed=args.world_speed,
             slow_from=args.slow_from,
             predict_latency=args.predict_latency,
+            check_ahead=args.check_ahead,
             corrections=None if args.corrections is None else " ".join(args.corrections),
             correction_rounds=args.correction_rounds,
         )
@@ -336,6 +345,8 @@ def command_line(config: SweepConfig, out: Path, args: argparse.Namespace) -> st
         argv += ["--slow-from", config.slow_from]
     if config.predict_latency:
         argv += ["--predict-latency"]
+    if config.check_ahead is not None:
+        argv += ["--check-ahead", str(config.check_ahead)]
     if config.corrections is not None:
         argv += ["--corrections", *config.corrections.split()]
     if config.correction_rounds is not None:

@@ -59,6 +59,7 @@ class Cell:
     world_speed: float = 1.0  # closed-loop eval cells: ExecutionConfig.world_speed
     slow_from: str = "start"  # and ExecutionConfig.slow_from (with a world_speed below 1)
     predict_latency: bool = False  # closed-loop eval cells: ExecutionConfig.predict_latency
+    check_ahead: int | None = None  # closed-loop eval cells: ExecutionConfig.check_ahead
     # skills cells and their eval cells: policies retrained on corrections in these worlds
     # (``bpns learn --corrections``), over ``correction_rounds`` rounds
     corrections: str | None = None
@@ -92,6 +93,8 @@ class Cell:
                     level += f"-from{self.slow_from}"
             if self.predict_latency:
                 level += "-predict"
+            if self.check_ahead is not None:
+                level += f"-ahead{self.check_ahead}"
             corrected = self.corrected
             return f"{EVAL}/{self.env}-{self.approach}{count}{corrected}{level}-seed{self.seed}"
         if self.kind == SKILLS:
@@ -142,6 +145,8 @@ class Cell:
                     s["slow_from"] = self.slow_from
             if self.predict_latency:  # (absent when off, likewise)
                 s["predict_latency"] = True
+            if self.check_ahead is not None:  # (absent when checking all, likewise)
+                s["check_ahead"] = self.check_ahead
         return json.loads(json.dumps(s))
 
     def describe(self) -> str:
@@ -166,6 +171,8 @@ class Cell:
                 parts.append(f"from the first {self.slow_from}")
         if self.predict_latency:
             parts.append("predicting the commands in flight")
+        if self.check_ahead is not None:
+            parts.append(f"checking {self.check_ahead} step(s) ahead")
         if self.corrections is not None:
             parts.append(f"corrected in {self.corrections} x{self.correction_rounds}")
         parts.append(f"seed {self.seed}")
@@ -257,6 +264,7 @@ def _eval_cells(
             world_speed=_world_speed(config, execution),
             slow_from=config.slow_from or "start",
             predict_latency=config.predict_latency and _closed_loop(execution),
+            check_ahead=config.check_ahead if _closed_loop(execution) else None,
         )
         for physics in config.levels()
         for world, execution in config.conditions()

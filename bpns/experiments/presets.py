@@ -59,6 +59,8 @@ class SweepConfig:
     slow_from: str | None = None
     # ExecutionConfig.predict_latency of every closed-loop cell
     predict_latency: bool = False
+    # ExecutionConfig.check_ahead of every closed-loop cell (None: the whole rest)
+    check_ahead: int | None = None
     # skills retrained on the oracle's corrections in these worlds (``bpns learn
     # --corrections``; None: none), over this many rounds (None: 2)
     corrections: str | None = None
@@ -105,6 +107,7 @@ class SweepConfig:
             ExecutionConfig(
                 world_speed=1.0 if self.world_speed is None else self.world_speed,
                 slow_from="start" if self.slow_from is None else self.slow_from,
+                check_ahead=self.check_ahead,
             )
         except ExecutionConfigError as err:
             raise SweepConfigError(str(err)) from None
@@ -215,6 +218,8 @@ class SweepConfig:
             del d["slow_from"]
         if not self.predict_latency:  # (absent, likewise)
             del d["predict_latency"]
+        if self.check_ahead is None:  # (absent, likewise)
+            del d["check_ahead"]
         if self.corrections is None:  # (absent, likewise)
             del d["corrections"], d["correction_rounds"]
         if not self.worlds and not self.executions and self.model == "nominal":

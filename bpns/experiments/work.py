@@ -145,6 +145,7 @@ def _evaluate(job: CellJob) -> dict[str, Any]:
             world_speed=cell.world_speed,
             slow_from=cell.slow_from,
             predict_latency=cell.predict_latency,
+            check_ahead=cell.check_ahead,
         ),
         eval_set=_eval_set_of(cell),
     )

@@ -71,6 +71,8 @@ PROBES = [
     ((*EVAL, "--world-speed", "nan"), "--world-speed: expected a number in (0, 1]"),
     ((*EVAL, "--world-speed", "1.5"), "--world-speed: expected a number in (0, 1]"),
     (("experiment", "--world-speed", "2"), "--world-speed: expected a number in (0, 1]"),
+    (("experiment", "--check-ahead", "0"), "--check-ahead"),
+    (("experiment", "--check-ahead", "-1"), "--check-ahead"),
     ((*EVAL, "--world-speed", "0.5", "--env", "stack"), "declares no motion_dims"),
     (("experiment", "--env", "stack", "--world-speed", "0.5"), "declares no motion_dims"),
     (("learn", "{d}", "--out", "{w}/sk", "--correction-rounds", "2"), "add --corrections"),

@@ -255,6 +255,21 @@ def test_predicting_the_commands_in_flight_names_closed_loop_cells_only(cover_en
     assert "predict_latency" not in worlds.to_json() and predict.to_json()["predict_latency"]
 
 
+def test_checking_fewer_steps_ahead_names_closed_loop_cells_only(cover_env):
+    worlds = dataclasses.replace(BASE, worlds=("hard",), executions=("closed-loop", "open-loop"))
+    before = {c.key: c for c in sweep_cells(worlds, {"cover": cover_env}) if c.kind == EVAL}
+    ahead = dataclasses.replace(worlds, check_ahead=1)
+    cells = [c for c in sweep_cells(ahead, {"cover": cover_env}) if c.kind == EVAL]
+    closed = [c for c in cells if c.execution == "closed-loop"]
+    opened = [c for c in cells if c.execution == "open-loop"]
+    assert closed and all(c.key.endswith("-ahead1-seed0") for c in closed)
+    assert all(c.settings["check_ahead"] == 1 and c.check_ahead == 1 for c in closed)
+    assert opened and all(before[c.key].settings == c.settings for c in opened)
+    assert "check_ahead" not in worlds.to_json() and ahead.to_json()["check_ahead"] == 1
+    with pytest.raises(SweepConfigError, match="check_ahead"):
+        dataclasses.replace(worlds, check_ahead=0)
+
+
 def test_a_worlds_sweep_splits_each_perturbed_row_by_the_world_its_tasks_met():
     hard = [Perturbation(latency=d, obs_noise=0.005) for d in (0, 1, 2, 2)]
     records = []
