@@ -36,6 +36,11 @@ class ExecutionConfig:
     watch_atoms:      end a skill the moment an atom the rest of the plan needs (and the
                       model's rollout kept) stops holding for the environment's
                       ``contact_settle_steps``, instead of at its horizon.
+    watch_releases:   also end a skill the moment a contact precondition it deletes (a
+                      grip it lets go of at the end) stops holding before its add effects
+                      all hold, when the model's own rollout of the step kept it until
+                      then (a handle slipping out of the fingers before the door opened):
+                      without it the skill runs on to its horizon on nothing.
     horizon_scale:    a skill executing in the world may take this many times its own
                       horizon (still capped by the planner's ``max_skill_horizon``). The
                       horizon learned from demonstrations cuts refinement short in the
@@ -83,6 +88,7 @@ class ExecutionConfig:
     rerefine_atol: float | None = 0.01
     check_ahead: int | None = None
     watch_atoms: bool = True
+    watch_releases: bool = False
     horizon_scale: float = 2.0
     world_speed: float = 1.0
     slow_from: str = SLOW_FROM[0]

@@ -17,6 +17,11 @@ alarm) must go on holding.
 Unlike the operators' predicted abstract states (which refinement of simulated plans
 matches by construction, so a monitor comparing with them never fires), the necessary
 atoms ignore side effects the rest of the plan does not care about.
+
+Optionally (``ExecutionConfig.watch_releases``) a step's contact preconditions that it
+deletes itself are watched too, until its add effects hold: a grip the model's rollout
+kept until the door opened (and only then let go) that the world loses earlier is a
+divergence, not the step's end.
 """
 
 from __future__ import annotations
@@ -52,6 +57,30 @@ def kept_atoms(
     ]
     held = [a for a in candidates if all(a.holds(s) for s in model_states)]
     return tuple(sorted(held, key=str))
+
+
+def released_atoms(
+    op: GroundOperator,
+    start: frozenset[GroundAtom],
+    contact_predicates: Collection[Predicate],
+    model_states: Sequence[State],
+) -> tuple[GroundAtom, ...]:
+    """The contact preconditions ``op`` deletes (true at the step's start) that the model's
+    rollout of the step kept true in every state before the first one where all of its
+    add effects hold: in the world they may go only once those hold too, sorted. None
+    when the model's rollout never reached the add effects."""
+    candidates = [
+        a for a in start & op.preconditions & op.delete_effects if a.predicate in contact_predicates
+    ]
+    if not candidates:
+        return ()
+    before: list[State] = []
+    for s in model_states:
+        if all(a.holds(s) for a in op.add_effects):
+            held = [a for a in candidates if all(a.holds(b) for b in before)]
+            return tuple(sorted(held, key=str))
+        before.append(s)
+    return ()
 
 
 def repair_point(

@@ -32,7 +32,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bpns.acting.config import ExecutionConfig
-from bpns.acting.monitor import atoms_text, kept_atoms, necessary_atoms, repair_point
+from bpns.acting.monitor import (
+    atoms_text,
+    kept_atoms,
+    necessary_atoms,
+    released_atoms,
+    repair_point,
+)
 from bpns.acting.prediction import InFlightPredictor
 from bpns.acting.world import WorldRun
 from bpns.env.abstraction import abstract
@@ -352,19 +358,19 @@ class ClosedLoopPlanner:
             world.reuse(step.op, step.subgoal, step.actions, step.states[1:])
             return None
         keep: tuple[GroundAtom, ...] = ()
+        releases: tuple[GroundAtom, ...] = ()
+        atoms = world.atoms()
         if self.execution.watch_atoms:
             keep = kept_atoms(
-                step.op,
-                world.atoms(),
-                needed_after,
-                self.model.contact_predicates,
-                step.states,
+                step.op, atoms, needed_after, self.model.contact_predicates, step.states
             )
-        reason = world.execute(step.skill, step.op, step.subgoal, step.test, keep)
+        if self.execution.watch_releases:
+            releases = released_atoms(step.op, atoms, self.model.contact_predicates, step.states)
+        reason = world.execute(step.skill, step.op, step.subgoal, step.test, keep, releases)
         if reason is None:
             return None
         if reason is FailureReason.ATOM_LOST:
-            lost = [a for a in keep if not a.holds(world.state)]
+            lost = [a for a in (*keep, *releases) if not a.holds(world.state)]
             return (
                 "atom_lost",
                 f"{atoms_text(lost) or 'an atom'} stopped holding during {step.op}",

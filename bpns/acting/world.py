@@ -81,13 +81,25 @@ class WorldRun:
         subgoal: np.ndarray,
         test: CompletionTest,
         keep: Sequence[GroundAtom] = (),
+        keep_until_added: Sequence[GroundAtom] = (),
     ) -> FailureReason | None:
         """Run ``skill`` towards ``subgoal`` until ``test`` holds; None on success, else
-        why it failed. Whatever it executed stays executed (the world moved)."""
+        why it failed. Whatever it executed stays executed (the world moved).
+        ``keep``: atoms it must not lose; ``keep_until_added``: atoms it must not lose
+        before ``op``'s add effects hold."""
         before = self.executor.sim_steps
         with self.world_clock.running():
             out = self.executor.execute(
-                skill, op.objects, subgoal, self.state, test, self.used, keep, self.keep_for
+                skill,
+                op.objects,
+                subgoal,
+                self.state,
+                test,
+                self.used,
+                keep,
+                self.keep_for,
+                keep_until_added,
+                tuple(sorted(op.add_effects, key=str)) if keep_until_added else (),
             )
         self.world_steps += self.executor.sim_steps - before
         self._tell_latency()

@@ -307,6 +307,13 @@ def add_world_arguments(p: argparse.ArgumentParser) -> None:
         "first 20 control steps (a Smith predictor; off by default)",
     )
     p.add_argument(
+        "--watch-releases",
+        action="store_true",
+        help="closed loop: also end a skill when a contact precondition it deletes (a grip "
+        "it lets go of at its end) stops holding before its effects appear, where the "
+        "model's rollout kept it until then (off by default)",
+    )
+    p.add_argument(
         "--no-back-off",
         dest="back_off",
         action="store_false",
@@ -345,6 +352,7 @@ def world_settings(
         resume_stopped=args.resume_stopped,
         back_off=args.back_off,
         predict_latency=args.predict_latency,
+        watch_releases=args.watch_releases,
     )
     return worlds, model, execution
 

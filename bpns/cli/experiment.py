@@ -152,6 +152,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "boundary simulate N steps of the plan's rest again; default: all of them)",
     )
     parser.add_argument(
+        "--watch-releases",
+        action="store_true",
+        help="closed-loop eval cells run with `bpns eval --watch-releases` (a grip lost "
+        "before the skill's effects appear ends it; default: off)",
+    )
+    parser.add_argument(
         "--corrections",
         nargs="+",
         metavar="PRESET|NAME=VALUE",
@@ -211,6 +217,7 @@ def sweep_config(args: argparse.Namespace) -> SweepConfig:
             slow_from=args.slow_from,
             predict_latency=args.predict_latency,
             check_ahead=args.check_ahead,
+            watch_releases=args.watch_releases,
             corrections=None if args.corrections is None else " ".join(args.corrections),
             correction_rounds=args.correction_rounds,
         )
@@ -347,6 +354,8 @@ def command_line(config: SweepConfig, out: Path, args: argparse.Namespace) -> st
         argv += ["--predict-latency"]
     if config.check_ahead is not None:
         argv += ["--check-ahead", str(config.check_ahead)]
+    if config.watch_releases:
+        argv += ["--watch-releases"]
     if config.corrections is not None:
         argv += ["--corrections", *config.corrections.split()]
     if config.correction_rounds is not None:

@@ -192,11 +192,14 @@ class SkillExecutor:
         used_steps: int = 0,
         keep: Sequence[GroundAtom] = (),
         keep_for: int = 1,
+        keep_until: Sequence[GroundAtom] = (),
+        until: Sequence[GroundAtom] = (),
     ) -> Executed | FailureReason:
         """Roll ``skill``'s policy out from ``state`` towards ``subgoal`` until ``test``
         holds; ``used_steps`` actions of the task's horizon are already spent. ``keep``:
         atoms that must go on holding (an execution monitor's); one that stays false
-        ``keep_for`` steps in a row ends the execution (``ATOM_LOST``)."""
+        ``keep_for`` steps in a row ends the execution (``ATOM_LOST``). ``keep_until``:
+        atoms that must go on holding likewise until every ``until`` atom holds."""
         must_hold = [(a.predicate.classifier, a.objects) for a in test.must_hold]
         must_not_hold = [(a.predicate.classifier, a.objects) for a in test.must_not_hold]
         policy = skill.policy
@@ -213,6 +216,8 @@ class SkillExecutor:
         unchanged = 0
         watch = self.contact_values(state) if self.contact_watch else None
         kept = [(a.predicate.classifier, a.objects) for a in keep]
+        kept_until = [(a.predicate.classifier, a.objects) for a in keep_until]
+        released = [(a.predicate.classifier, a.objects) for a in until]
         lost = 0
         slowed, speed = self.slowed, self.config.speed
         limit = self.config.max_skill_horizon
@@ -245,8 +250,13 @@ class SkillExecutor:
                 return FailureReason.DEAD_END
             if watch is not None and self.contact_values(state) != watch:
                 return FailureReason.CONTACT_CHANGED
-            if kept:
-                lost = lost + 1 if not all(c(state, o) for c, o in kept) else 0
+            if kept or kept_until:
+                held = all(c(state, o) for c, o in kept) and (
+                    not kept_until
+                    or all(c(state, o) for c, o in kept_until)
+                    or all(c(state, o) for c, o in released)
+                )
+                lost = 0 if held else lost + 1
                 if lost >= keep_for:
                     return FailureReason.ATOM_LOST
             # ``feats`` is an anchor: the state where the world last stood still. Comparing

@@ -60,6 +60,7 @@ class Cell:
     slow_from: str = "start"  # and ExecutionConfig.slow_from (with a world_speed below 1)
     predict_latency: bool = False  # closed-loop eval cells: ExecutionConfig.predict_latency
     check_ahead: int | None = None  # closed-loop eval cells: ExecutionConfig.check_ahead
+    watch_releases: bool = False  # closed-loop eval cells: ExecutionConfig.watch_releases
     # skills cells and their eval cells: policies retrained on corrections in these worlds
     # (``bpns learn --corrections``), over ``correction_rounds`` rounds
     corrections: str | None = None
@@ -95,6 +96,8 @@ class Cell:
                 level += "-predict"
             if self.check_ahead is not None:
                 level += f"-ahead{self.check_ahead}"
+            if self.watch_releases:
+                level += "-releases"
             corrected = self.corrected
             return f"{EVAL}/{self.env}-{self.approach}{count}{corrected}{level}-seed{self.seed}"
         if self.kind == SKILLS:
@@ -147,6 +150,8 @@ class Cell:
                 s["predict_latency"] = True
             if self.check_ahead is not None:  # (absent when checking all, likewise)
                 s["check_ahead"] = self.check_ahead
+            if self.watch_releases:  # (absent when off, likewise)
+                s["watch_releases"] = True
         return json.loads(json.dumps(s))
 
     def describe(self) -> str:
@@ -173,6 +178,8 @@ class Cell:
             parts.append("predicting the commands in flight")
         if self.check_ahead is not None:
             parts.append(f"checking {self.check_ahead} step(s) ahead")
+        if self.watch_releases:
+            parts.append("watching releases")
         if self.corrections is not None:
             parts.append(f"corrected in {self.corrections} x{self.correction_rounds}")
         parts.append(f"seed {self.seed}")
@@ -265,6 +272,7 @@ def _eval_cells(
             slow_from=config.slow_from or "start",
             predict_latency=config.predict_latency and _closed_loop(execution),
             check_ahead=config.check_ahead if _closed_loop(execution) else None,
+            watch_releases=config.watch_releases and _closed_loop(execution),
         )
         for physics in config.levels()
         for world, execution in config.conditions()

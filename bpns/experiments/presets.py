@@ -61,6 +61,8 @@ class SweepConfig:
     predict_latency: bool = False
     # ExecutionConfig.check_ahead of every closed-loop cell (None: the whole rest)
     check_ahead: int | None = None
+    # ExecutionConfig.watch_releases of every closed-loop cell
+    watch_releases: bool = False
     # skills retrained on the oracle's corrections in these worlds (``bpns learn
     # --corrections``; None: none), over this many rounds (None: 2)
     corrections: str | None = None
@@ -220,6 +222,8 @@ class SweepConfig:
             del d["predict_latency"]
         if self.check_ahead is None:  # (absent, likewise)
             del d["check_ahead"]
+        if not self.watch_releases:  # (absent, likewise)
+            del d["watch_releases"]
         if self.corrections is None:  # (absent, likewise)
             del d["corrections"], d["correction_rounds"]
         if not self.worlds and not self.executions and self.model == "nominal":

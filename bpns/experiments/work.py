@@ -146,6 +146,7 @@ def _evaluate(job: CellJob) -> dict[str, Any]:
             slow_from=cell.slow_from,
             predict_latency=cell.predict_latency,
             check_ahead=cell.check_ahead,
+            watch_releases=cell.watch_releases,
         ),
         eval_set=_eval_set_of(cell),
     )

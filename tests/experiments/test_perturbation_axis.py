@@ -270,6 +270,19 @@ def test_checking_fewer_steps_ahead_names_closed_loop_cells_only(cover_env):
         dataclasses.replace(worlds, check_ahead=0)
 
 
+def test_watching_releases_names_closed_loop_cells_only(cover_env):
+    worlds = dataclasses.replace(BASE, worlds=("hard",), executions=("closed-loop", "open-loop"))
+    before = {c.key: c for c in sweep_cells(worlds, {"cover": cover_env}) if c.kind == EVAL}
+    watch = dataclasses.replace(worlds, watch_releases=True)
+    cells = [c for c in sweep_cells(watch, {"cover": cover_env}) if c.kind == EVAL]
+    closed = [c for c in cells if c.execution == "closed-loop"]
+    opened = [c for c in cells if c.execution == "open-loop"]
+    assert closed and all(c.key.endswith("-releases-seed0") for c in closed)
+    assert all(c.settings["watch_releases"] is True for c in closed)
+    assert opened and all(before[c.key].settings == c.settings for c in opened)
+    assert "watch_releases" not in worlds.to_json() and watch.to_json()["watch_releases"]
+
+
 def test_a_worlds_sweep_splits_each_perturbed_row_by_the_world_its_tasks_met():
     hard = [Perturbation(latency=d, obs_noise=0.005) for d in (0, 1, 2, 2)]
     records = []
