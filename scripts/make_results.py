@@ -284,7 +284,11 @@ def robustness_sections() -> list[str]:
             "the sections measured so reproduce with `seed=0` in each world "
             "(`--worlds nominal 'moderate seed=0' 'hard seed=0'`). The sections named "
             "`*_v3` draw each seed's worlds from that seed and back off where no plan "
-            "starts from the world's state (commits 1750b33, a000817).\n",
+            "starts from the world's state (commits 1750b33, a000817). `doors_1000_v4` "
+            "evaluates `doors_1000_v3`'s skills again after Doors stopped taking closed "
+            "fingers pushed against the handle for a grasp and learned to reach for it "
+            "again after a lost grip (commits 76d3707, 484f42f; docs/WORLDS.md, \"A lost "
+            "grip is not a grasp\").\n",
         )
     return out
 
