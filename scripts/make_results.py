@@ -287,8 +287,9 @@ def robustness_sections() -> list[str]:
             "starts from the world's state (commits 1750b33, a000817). `doors_1000_v4` "
             "evaluates `doors_1000_v3`'s skills again after Doors stopped taking closed "
             "fingers pushed against the handle for a grasp and learned to reach for it "
-            "again after a lost grip (commits 76d3707, 484f42f; docs/WORLDS.md, \"A lost "
-            "grip is not a grasp\").\n",
+            'again after a lost grip (commits 76d3707, 484f42f; docs/WORLDS.md, "A lost '
+            'grip is not a grasp"); `doors_1000_v4_releases` the same with `--watch-releases` '
+            "(commit 617dc4e).\n",
         )
     return out
 
