@@ -67,7 +67,7 @@ def released_atoms(
 ) -> tuple[GroundAtom, ...]:
     """The contact preconditions ``op`` deletes (true at the step's start) that the model's
     rollout of the step kept true in every state before the first one where all of its
-    add effects hold: in the world they may go only once those hold too, sorted. None
+    add effects hold: in the world they may go only once those hold too, sorted; none
     when the model's rollout never reached the add effects."""
     candidates = [
         a for a in start & op.preconditions & op.delete_effects if a.predicate in contact_predicates
