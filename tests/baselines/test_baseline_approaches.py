@@ -4,8 +4,11 @@ test_learning_gnn_baselines.py)."""
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
+from bpns.acting.config import ExecutionConfig
 from bpns.baselines.approaches import META_SAMPLES, GNNBehaviourCloning, GNNMeta
 from bpns.env.abstraction import abstract
 from bpns.execution.failures import FailureReason
@@ -113,3 +116,21 @@ def test_running_out_of_task_steps_is_reported_as_the_task_horizon() -> None:
     short = type(task)(task.init, task.goal, horizon=3)  # too few steps to reach anything
     out = _meta(toy_gnn.oracle_skills()).solve(short, np.random.default_rng(0), 60.0)
     assert out.reason is FailureReason.TASK_HORIZON and out.samples == META_SAMPLES
+
+
+def _dawdling_policy(state, atoms, goal) -> np.ndarray:
+    """Stands still, slowly: the task's horizon would take seconds to use up."""
+    time.sleep(0.05)
+    return np.zeros(2)
+
+
+def test_a_policy_acting_every_step_stops_at_its_timeout_in_both_loops() -> None:
+    env = toy_gnn.ToyCoverEnv()
+    task = _tasks(1, seed=6)[0]
+    assert task.horizon * 0.05 > 1.0  # the horizon alone would outlast the timeout
+    approach = GNNBehaviourCloning(env, _dawdling_policy)
+    model_only = approach.solve(task, np.random.default_rng(0), 0.2)
+    closed = ExecutionConfig(closed_loop=True)
+    in_world = approach.solve_in_world(task, env, env, np.random.default_rng(0), 0.2, closed)
+    for out in (model_only, in_world):
+        assert out.reason is FailureReason.TIMEOUT and 0 < out.sim_steps < task.horizon
