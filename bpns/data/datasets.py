@@ -233,8 +233,14 @@ def _open(path: str | os.PathLike) -> h5py.File:
 
 
 def _data(f: h5py.File, path: str | os.PathLike) -> h5py.Group:
-    if checks.root_text_attr(f, "format") != FORMAT or "data" not in f:
-        raise DatasetError(f"{path}: not a bpns demonstration file (format {FORMAT!r})")
+    found = checks.root_text_attr(f, "format")
+    if found != FORMAT or "data" not in f:
+        what = f"its format is {found!r}" if found is not None else "it has no format attribute"
+        if found == FORMAT:
+            what = "it has no /data group"
+        raise DatasetError(
+            f"{path}: not a bpns demonstration file ({what}; expected format {FORMAT!r})"
+        )
     try:
         return checks.member(f, "data", h5py.Group)
     except ValueError as err:

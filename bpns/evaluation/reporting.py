@@ -4,14 +4,15 @@ task's rollout."""
 
 from __future__ import annotations
 
+import contextlib
 import json
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from bpns.atomic import atomic_path
+from bpns.atomic import atomic_path, remove_stale_temporaries
 from bpns.env.environment import Environment, eval_environment, perturbed
 from bpns.env.object_counts import EvalSet
 from bpns.env.perturbations import Perturbation
@@ -21,7 +22,7 @@ from bpns.evaluation.rollout_files import demonstration_of, rollouts_name, save_
 from bpns.execution.failures import MEANING
 from bpns.execution.rollouts import Rollout
 from bpns.execution.video import render_rollout
-from bpns.pools import make_pool, result_of
+from bpns.pools import WorkerDiedError, make_pool, result_of
 
 
 def solved_line(report: EvalReport) -> str:
@@ -171,7 +172,7 @@ def render_longest_solved(
     png = video.with_suffix(".png")
     # Rendered in a fresh worker: writing the mp4 forks ffmpeg, and a fork of a parent that
     # holds a thousand loaded demonstrations fails with ENOMEM (`bpns run` at 1000 demos).
-    with make_pool(1) as pool:
+    with make_pool(1) as pool, _cleared_when_killed(video, png):
         n = result_of(
             pool.submit(
                 _render_task,
@@ -185,9 +186,22 @@ def render_longest_solved(
                 png,
                 report.eval_set,
                 deadline,
-            )
+            ),
+            f"the video of task {outcome.index}",
         )
     return SolvedVideo(video, png, n, report.label, outcome)
+
+
+@contextlib.contextmanager
+def _cleared_when_killed(*paths: Path) -> Iterator[None]:
+    """A rendering worker killed mid-write leaves its temporaries beside ``paths``
+    (a staging directory that would put them in place): remove them."""
+    try:
+        yield
+    except WorkerDiedError:
+        for path in paths:
+            remove_stale_temporaries(path)
+        raise
 
 
 def _render_task(

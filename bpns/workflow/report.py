@@ -16,6 +16,7 @@ from bpns.evaluation.by_world import world_tables
 from bpns.evaluation.evaluate import EvalReport, conditions_line, markdown_table
 from bpns.evaluation.reporting import SolvedVideo, render_longest_solved, write_results
 from bpns.execution.video import VideoError
+from bpns.pools import WorkerDiedError
 from bpns.workflow.report_page import DEFAULT_PAGE, PageRequest, PageWritten, write_eval_page
 
 
@@ -60,7 +61,9 @@ def report_evaluation(
     given): ``task`` of the first approach, solved or failed, else the longest solved
     plan of the first approach that solved anything; ``out/report.html`` with the videos
     ``page`` asks for (:mod:`bpns.workflow.report_page`). Raises ``VideoError`` when rendering
-    fails and :class:`TaskNotEvaluatedError` for a task not evaluated."""
+    ``video`` fails (after the results are in place, when ``out`` is given: an evaluation
+    that took hours is not lost to its video) and :class:`TaskNotEvaluatedError` for a
+    task not evaluated."""
     table = conditions_line(reports) + "\n\n" + markdown_table(reports)
     by_world = world_tables(reports)
     if by_world:
@@ -72,6 +75,7 @@ def report_evaluation(
             write_results(staging.path(out), reports, table, env)
         rendered = None
         no_video_of = None
+        video_failed: Exception | None = None
         if video is not None:
             solving = next((r for r in reports if r.num_solved), reports[0])
             if task is not None:
@@ -80,8 +84,10 @@ def report_evaluation(
                 rendered = render_longest_solved(
                     env, solving, staging.path(video), seed, train, task, camera
                 )
-            except VideoError:
-                raise
+            except (VideoError, WorkerDiedError) as err:
+                if out is None:
+                    raise
+                video_failed = err  # raised once the results are in place: they stand
             except ValueError as err:
                 raise TaskNotEvaluatedError(str(err)) from None
             if rendered is None:
@@ -94,4 +100,6 @@ def report_evaluation(
                 key = (solving.approach, rendered.outcome.index)
                 page = dataclasses.replace(page, rendered={key: (rendered.video, rendered.png)})
             written = write_eval_page(env, reports, out, table, seed, train, page, staging.path)
+    if video_failed is not None:
+        raise VideoError(f"{video_failed} (the results were written to {out})")
     return EvaluationReported(table, out, rendered, no_video_of, written)

@@ -18,6 +18,7 @@ from bpns.evaluation.evaluate import EvalReport
 from bpns.evaluation.reporting import render_longest_solved
 from bpns.execution.video import OutOfTimeError, VideoError
 from bpns.inspect.html_report import PageMedia, relative_link, write_page
+from bpns.pools import WorkerDiedError
 from bpns.workflow.inspect import Recorded, chosen_outcomes
 
 REPORT_VIDEOS = ("failed", "all", "none")
@@ -94,7 +95,7 @@ def write_eval_page(
             )
         except OutOfTimeError:  # a long rollout: stopped at the budget, not after it
             break
-        except VideoError as err:
+        except (VideoError, WorkerDiedError) as err:  # the results stand without videos
             notes.append(f"videos not rendered: {err}")
             break
         videos[key] = relative_link(path, out)

@@ -74,7 +74,11 @@ def test_missing_file_and_foreign_hdf5_are_reported(tmp_path, cover_env):
     other = tmp_path / "other.h5"
     with h5py.File(other, "w") as f:
         f["x"] = 1
-    with pytest.raises(DatasetError, match="not a bpns demonstration file"):
+    with pytest.raises(DatasetError, match="not a bpns demonstration file .it has no format"):
+        load_demonstrations(other, cover_env)
+    with h5py.File(other, "a") as f:
+        f.attrs["format"] = "bpns-demos-0"
+    with pytest.raises(DatasetError, match="its format is 'bpns-demos-0'; expected format"):
         load_demonstrations(other, cover_env)
 
 

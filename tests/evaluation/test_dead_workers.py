@@ -16,7 +16,7 @@ from bpns.planning.config import PlanningConfig
 SPEC = EvalSpec("cover", "oracle", PlanningConfig(timeout=30.0), task_seed=7)
 
 
-def _kill_a_worker_once_started(pool) -> None:
+def kill_a_worker_once_started(pool) -> None:
     """SIGKILL the pool's first worker as soon as it exists (what the OOM killer does)."""
 
     def kill() -> None:
@@ -39,7 +39,7 @@ def _recording_pools(monkeypatch, kill_alone: bool) -> list:
         pool = real(workers, *args, **kwargs)
         pools.append((workers, pool))
         if kill_alone and workers == 1 and [w for w, _ in pools].count(1) == 1:
-            _kill_a_worker_once_started(pool)  # the first task run alone dies again
+            kill_a_worker_once_started(pool)  # the first task run alone dies again
         return pool
 
     monkeypatch.setattr(evaluation, "make_pool", make_pool)

@@ -15,12 +15,15 @@ import pytest
 from bpns.acting.world import BACK_OFF
 from bpns.cli import main
 from bpns.env.perturbations import Perturbation
+from bpns.evaluation import reporting
 from bpns.evaluation.evaluate import EvalSpec, evaluate
 from bpns.evaluation.rollout_files import RolloutsFile, replay_rollouts, save_rollouts
 from bpns.execution import video
 from bpns.execution.rollouts import REACHED, PlanStep, outcome_caption, step_captions
-from bpns.execution.video import draw_caption, render_rollout
+from bpns.execution.video import VideoError, draw_caption, render_rollout
 from bpns.planning.config import planning_config_for
+from bpns.workflow.report import report_evaluation
+from tests.evaluation.test_dead_workers import kill_a_worker_once_started
 
 SLIPPERY = Perturbation(friction_scale=0.0)
 
@@ -298,3 +301,34 @@ def test_the_report_s_video_budget_bounds_a_video_under_way(
     assert len(deadlines) == 1 and deadlines[0] is not None
     assert "1 videos left out after 60 s" in (tmp_path / "report.html").read_text()
     assert not (tmp_path / "videos").exists()
+
+
+def _rendering_workers_killed(monkeypatch) -> None:
+    """Every rendering worker is SIGKILLed as soon as it exists (the OOM killer)."""
+    real = reporting.make_pool
+
+    def make_pool(workers, *args, **kwargs):
+        pool = real(workers, *args, **kwargs)
+        kill_a_worker_once_started(pool)
+        return pool
+
+    monkeypatch.setattr(reporting, "make_pool", make_pool)
+
+
+def test_a_rendering_worker_killed_loses_no_results_and_leaves_no_temporaries(
+    cover_env, failed_report, tmp_path, monkeypatch
+):
+    _rendering_workers_killed(monkeypatch)
+    out = tmp_path / "eval"
+    reported = report_evaluation(cover_env, [failed_report], out, seed=7)
+    assert reported.page is not None and reported.page.videos == 0
+    page = (out / "report.html").read_text()
+    assert "videos not rendered" in page and "while the video of task 0 was unfinished" in page
+    assert (out / "results.json").is_file() and (out / "rollouts_oracle.h5").is_file()
+    assert not [p for p in out.rglob("*") if p.name.startswith(".")]  # no temporaries
+    # a video asked for by name fails the command, after the results are in place
+    again = tmp_path / "again"
+    with pytest.raises(VideoError, match=f"the results were written to {again}"):
+        report_evaluation(cover_env, [failed_report], again, tmp_path / "v.mp4", seed=7, task=0)
+    assert (again / "results.json").is_file() and not (tmp_path / "v.mp4").exists()
+    assert not [p for p in tmp_path.rglob("*") if p.name.startswith(".")]
