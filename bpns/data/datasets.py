@@ -234,10 +234,14 @@ def _open(path: str | os.PathLike) -> h5py.File:
 
 def _data(f: h5py.File, path: str | os.PathLike) -> h5py.Group:
     found = checks.root_text_attr(f, "format")
-    if found != FORMAT or "data" not in f:
-        what = f"its format is {found!r}" if found is not None else "it has no format attribute"
-        if found == FORMAT:
-            what = "it has no /data group"
+    what = None
+    if found is None:
+        what = "it has no format attribute"
+    elif found != FORMAT:
+        what = f"its format is {found!r}"
+    elif "data" not in f:
+        what = "it has no /data group"
+    if what is not None:
         raise DatasetError(
             f"{path}: not a bpns demonstration file ({what}; expected format {FORMAT!r})"
         )
