@@ -9,7 +9,7 @@ from bpns.env.abstraction import abstract
 from bpns.structs import State
 from mj_envs.domains.doors.demonstrator import room_of, room_path
 from mj_envs.domains.doors.env import DoorsEnv
-from mj_envs.domains.doors.motion import BasePlanner, scene_boxes
+from mj_envs.domains.doors.motion import BasePlanner, Boxes2D, scene_boxes
 from mj_envs.domains.doors.rules import (
     DOOR,
     HANDLE_TOLERANCE,
@@ -231,6 +231,36 @@ def test_base_planner_paths_are_collision_free_and_seeded(env):
     assert all(np.array_equal(a, b) for a, b in zip(*paths, strict=True))
     for a, b in zip(paths[0][:-1], paths[0][1:], strict=True):
         assert planner.segment_free(a, b)
+
+
+def _wall_planner() -> BasePlanner:
+    """One wall along x = 0 from y = -1 to 1 in a 4 m square."""
+    wall = Boxes2D(np.zeros((1, 2)), np.array([[0.05, 1.0]]), np.zeros(1))
+    return BasePlanner(wall, np.full(2, -2.0), np.full(2, 2.0))
+
+
+@pytest.mark.parametrize("goal", [(1.5, 0.5), (-0.5, 0.0)])  # this side; round the wall
+def test_a_base_too_close_to_a_wall_leaves_it_without_going_deeper(goal):
+    planner = _wall_planner()
+    start = np.array([0.25, 0.0])  # 0.20 from the wall: inside the 0.26 clearance
+    escape = planner.start_in_collision(start)
+    assert escape is not None and not planner.free(start)[0]
+    path = planner.plan(start, np.array(goal), np.random.default_rng(3))
+    assert np.array_equal(path[0], start) and np.array_equal(path[-1], goal)
+    for a, b in zip(path[:-1], path[1:], strict=True):
+        assert planner.segment_free(a, b, escape)
+        t = np.linspace(0.0, 1.0, 200)[:, None]
+        points = a * (1 - t) + b * t
+        distance = planner.boxes.distance(points)
+        near = np.linalg.norm(points - start, axis=1) <= planner.config.clearance
+        assert (distance > planner.config.clearance)[~near].all()
+        assert (distance >= escape.floor).all()  # never deeper than where it stood
+
+
+def test_a_free_start_gets_no_exemption():
+    planner = _wall_planner()
+    assert planner.start_in_collision(np.array([1.0, 0.0])) is None
+    assert not planner.segment_free(np.array([1.0, 0.0]), np.array([0.2, 0.0]))
 
 
 def test_given_skills_are_deterministic(env):

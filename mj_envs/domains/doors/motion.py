@@ -83,6 +83,19 @@ class NoPathFound(BpnsError, RuntimeError):
     """The planner found no collision-free path within its iteration budget."""
 
 
+@dataclass(frozen=True)
+class StartInCollision:
+    """A start closer to a box than the clearance (the base pushed against a wall, or in
+    a doorway beside a leaf the planner counts as closed), and how close: ``floor``.
+    Within ``clearance`` of ``xy`` a point counts as free when it is no closer to a box
+    than the start, so that the robot may leave where it stands without going deeper.
+    Without it every edge from the start collides, and the planner spent its whole
+    iteration budget (0.6-1.4 s) at every control step before giving up."""
+
+    xy: np.ndarray
+    floor: float
+
+
 class BasePlanner:
     """Plans collision-free base paths among fixed boxes inside a rectangle."""
 
@@ -95,28 +108,45 @@ class BasePlanner:
     ) -> None:
         self.boxes, self.low, self.high, self.config = boxes, low, high, config
 
-    def free(self, points: np.ndarray) -> np.ndarray:
-        return self.boxes.distance(np.atleast_2d(points)) > self.config.clearance
+    def free(self, points: np.ndarray, start: StartInCollision | None = None) -> np.ndarray:
+        points = np.atleast_2d(points)
+        distance = self.boxes.distance(points)
+        ok = distance > self.config.clearance
+        if start is not None:
+            near = np.linalg.norm(points - start.xy, axis=1) <= self.config.clearance
+            ok |= near & (distance >= start.floor)
+        return ok
 
-    def segment_free(self, a: np.ndarray, b: np.ndarray) -> bool:
+    def segment_free(
+        self, a: np.ndarray, b: np.ndarray, start: StartInCollision | None = None
+    ) -> bool:
         n = max(2, int(math.ceil(float(np.linalg.norm(b - a)) / CHECK_STEP)) + 1)
         t = np.linspace(0.0, 1.0, n)[:, None]
-        return bool(self.free(a[None] * (1 - t) + b[None] * t).all())
+        return bool(self.free(a[None] * (1 - t) + b[None] * t, start).all())
+
+    def start_in_collision(self, start: np.ndarray) -> StartInCollision | None:
+        """``start``'s exemption (:class:`StartInCollision`), or None where it is free."""
+        distance = float(self.boxes.distance(np.atleast_2d(start))[0])
+        if distance > self.config.clearance:
+            return None
+        return StartInCollision(np.asarray(start, float), distance - 1e-9)
 
     def plan(
         self, start: np.ndarray, goal: np.ndarray, rng: np.random.Generator
     ) -> list[np.ndarray]:
-        """A collision-free polyline start -> goal (start itself may touch: it is where the
-        robot is). Raises :class:`NoPathFound`."""
+        """A collision-free polyline start -> goal (the start itself may be too close to a
+        box: it is where the robot is; :class:`StartInCollision`). Raises
+        :class:`NoPathFound`."""
         start, goal = np.asarray(start, float), np.asarray(goal, float)
         if not self.free(goal)[0]:
             raise NoPathFound(f"the goal {goal.round(3).tolist()} is in collision")
-        if self.segment_free(start, goal):
+        escape = self.start_in_collision(start)
+        if self.segment_free(start, goal, escape):
             return [start, goal]
-        path = self._rrt_connect(start, goal, rng)
-        return self._shortcut(path, rng)
+        path = self._rrt_connect(start, goal, rng, escape)
+        return self._shortcut(path, rng, escape)
 
-    def _rrt_connect(self, start, goal, rng) -> list[np.ndarray]:
+    def _rrt_connect(self, start, goal, rng, escape=None) -> list[np.ndarray]:
         cfg = self.config
         trees = [([start], [-1]), ([goal], [-1])]
         for it in range(cfg.max_iterations):
@@ -126,12 +156,12 @@ class BasePlanner:
                 if (it % 2 == 0 and rng.random() < cfg.goal_bias)
                 else rng.uniform(self.low, self.high)
             )
-            new = self._extend(a, q)
+            new = self._extend(a, q, escape)
             if new is None:
                 continue
             # connect: grow the other tree towards the new node until blocked or joined
             while True:
-                reached = self._extend(b, a[0][new])
+                reached = self._extend(b, a[0][new], escape)
                 if reached is None:
                     break
                 if np.linalg.norm(b[0][reached] - a[0][new]) < 1e-9:
@@ -140,14 +170,14 @@ class BasePlanner:
                     return path if it % 2 == 0 else path[::-1]
         raise NoPathFound(f"no path from {start.round(3).tolist()} to {goal.round(3).tolist()}")
 
-    def _extend(self, tree, q) -> int | None:
+    def _extend(self, tree, q, escape=None) -> int | None:
         nodes, parents = tree
         arr = np.asarray(nodes)
         i = int(np.argmin(((arr - q) ** 2).sum(axis=1)))
         d = q - arr[i]
         dist = float(np.linalg.norm(d))
         new = q if dist <= self.config.step else arr[i] + d * (self.config.step / dist)
-        if not self.segment_free(arr[i], new):
+        if not self.segment_free(arr[i], new, escape):
             return None
         nodes.append(np.asarray(new, float))
         parents.append(i)
@@ -162,13 +192,13 @@ class BasePlanner:
             i = parents[i]
         return out  # node ... root
 
-    def _shortcut(self, path: list[np.ndarray], rng) -> list[np.ndarray]:
+    def _shortcut(self, path: list[np.ndarray], rng, escape=None) -> list[np.ndarray]:
         path = list(path)
         for _ in range(self.config.shortcut_rounds):
             if len(path) < 3:
                 break
             i, j = sorted(rng.choice(len(path), size=2, replace=False))
-            if j - i > 1 and self.segment_free(path[i], path[j]):
+            if j - i > 1 and self.segment_free(path[i], path[j], escape):
                 path = path[: i + 1] + path[j:]
         return path
 
