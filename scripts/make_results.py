@@ -289,7 +289,10 @@ def robustness_sections() -> list[str]:
             "fingers pushed against the handle for a grasp and learned to reach for it "
             'again after a lost grip (commits 76d3707, 484f42f; docs/WORLDS.md, "A lost '
             'grip is not a grasp"); `doors_1000_v4_releases` the same with `--watch-releases` '
-            "(commit 617dc4e).\n",
+            "(commit 617dc4e). `stick_button_1000_v4` is `stick_button_1000_v3`'s protocol "
+            "after Stick Button's back-off learned to keep a stick still in hand (commits "
+            'd2c41ba, 0ec81e1; docs/WORLDS.md, "Backing off"), fresh demonstrations and '
+            "skills.\n",
         )
     return out
 
