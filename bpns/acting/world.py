@@ -18,7 +18,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from bpns.acting.prediction import InFlightPredictor
-from bpns.env.abstraction import abstract
+from bpns.env.abstraction import abstract, ground_atoms, true_atoms
 from bpns.env.environment import Environment
 from bpns.execution.executor import (
     CompletionTest,
@@ -60,13 +60,18 @@ class WorldRun:
         self.world_clock = Stopwatch()
         self.predictor: InFlightPredictor | None = None
         self._latency_told = False
+        self._ground: tuple[GroundAtom, ...] | None = None  # built by atoms()
 
     @property
     def used(self) -> int:
         return len(self.actions)
 
     def atoms(self) -> frozenset[GroundAtom]:
-        return abstract(self.state, self.env.predicates)
+        """The world's atoms now (its objects never change within a task, so their ground
+        atoms are built once: a 6x6 Doors map has over 6,000)."""
+        if self._ground is None:
+            self._ground = ground_atoms(self.task.init.objects, self.env.predicates)
+        return true_atoms(self.state, self._ground)
 
     def goal_holds(self) -> bool:
         return self.task.goal_holds(abstract(self.state, self.env.goal_predicates))
