@@ -152,10 +152,25 @@ def _doors_share_room(state: State, objs: Sequence[Object]) -> bool:
     )
     if gap > _SHARE_ROOM_REACH:
         return False
-    return any(
-        door_in_room(state, d1, r) and door_in_room(state, d2, r)
-        for r in state.objects_of_type(ROOM)
-    )
+    rooms = _rooms_of_doors(state)
+    return not rooms[d1].isdisjoint(rooms[d2])
+
+
+_last_rooms: list = [None, None]  # (state, its doors' rooms): the state being abstracted
+
+
+def _rooms_of_doors(state: State) -> dict[Object, frozenset[Object]]:
+    """Each door's rooms in ``state``, computed once per state: abstracting a state asks
+    DoorsShareRoom of every pair of doors (3,600 on a 6x6 map), and scanning the rooms
+    for each pair cost a third of the oracle's time there."""
+    if _last_rooms[0] is not state:
+        rooms = state.objects_of_type(ROOM)
+        _last_rooms[1] = {
+            d: frozenset(r for r in rooms if door_in_room(state, d, r))
+            for d in state.objects_of_type(DOOR)
+        }
+        _last_rooms[0] = state
+    return _last_rooms[1]
 
 
 IN_ROOM = Predicate("InRoom", (ROBOT, ROOM), _in_room)
