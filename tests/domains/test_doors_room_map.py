@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 
 from bpns.env.abstraction import abstract
+from bpns.structs import GroundAtom
 from mj_envs.domains.doors.env import DoorsEnv, DoorsPaperEnv
 from mj_envs.domains.doors.motion import scene_boxes
+from mj_envs.domains.doors.rules import DOOR, DOORS_SHARE_ROOM, ROOM, door_in_room
 from mj_envs.domains.doors.scene import NEIGHBOURS, RoomMap, sample_plan, sample_room_map
 
 
@@ -105,3 +107,19 @@ def test_todays_full_grids_are_unchanged_by_the_room_map_option():
 def test_bad_room_map_parameters_are_refused_naming_the_value(kwargs, message):
     with pytest.raises(ValueError, match=message):
         RoomMap(**kwargs)
+
+
+def test_doors_share_a_room_exactly_when_one_room_holds_both_on_every_map():
+    env = DoorsPaperEnv()
+    states = [task.init for task in env.train_tasks(3, seed=5)]
+    for state in [*states, states[0]]:  # back to the first: nothing carried over
+        doors = state.objects_of_type(DOOR)
+        rooms = state.objects_of_type(ROOM)
+        atoms = abstract(state, [DOORS_SHARE_ROOM])
+        for d1 in doors:
+            for d2 in doors:
+                shared = d1 != d2 and any(
+                    door_in_room(state, d1, r) and door_in_room(state, d2, r) for r in rooms
+                )
+                assert (GroundAtom(DOORS_SHARE_ROOM, (d1, d2)) in atoms) == shared
+        assert atoms  # a map with two doors in a room

@@ -156,21 +156,26 @@ def _doors_share_room(state: State, objs: Sequence[Object]) -> bool:
     return not rooms[d1].isdisjoint(rooms[d2])
 
 
-_last_rooms: list = [None, None]  # (state, its doors' rooms): the state being abstracted
+class _LastRooms:
+    """The last state asked about and its doors' rooms (a cache, not a setting)."""
+
+    state: State | None = None
+    rooms: dict[Object, frozenset[Object]] = {}
 
 
 def _rooms_of_doors(state: State) -> dict[Object, frozenset[Object]]:
     """Each door's rooms in ``state``, computed once per state: abstracting a state asks
     DoorsShareRoom of every pair of doors (3,600 on a 6x6 map), and scanning the rooms
-    for each pair cost a third of the oracle's time there."""
-    if _last_rooms[0] is not state:
+    for each pair cost a third of the oracle's time there. States are immutable, so the
+    same object has the same rooms."""
+    if _LastRooms.state is not state:
         rooms = state.objects_of_type(ROOM)
-        _last_rooms[1] = {
+        _LastRooms.rooms = {
             d: frozenset(r for r in rooms if door_in_room(state, d, r))
             for d in state.objects_of_type(DOOR)
         }
-        _last_rooms[0] = state
-    return _last_rooms[1]
+        _LastRooms.state = state
+    return _LastRooms.rooms
 
 
 IN_ROOM = Predicate("InRoom", (ROBOT, ROOM), _in_room)
