@@ -108,21 +108,22 @@ class BasePlanner:
     ) -> None:
         self.boxes, self.low, self.high, self.config = boxes, low, high, config
 
-    def free(self, points: np.ndarray, start: StartInCollision | None = None) -> np.ndarray:
+    def free(self, points: np.ndarray, escape: StartInCollision | None = None) -> np.ndarray:
+        """Which ``points`` keep the clearance (or, near ``escape``'s start, go no deeper)."""
         points = np.atleast_2d(points)
         distance = self.boxes.distance(points)
         ok = distance > self.config.clearance
-        if start is not None:
-            near = np.linalg.norm(points - start.xy, axis=1) <= self.config.clearance
-            ok |= near & (distance >= start.floor)
+        if escape is not None:
+            near = np.linalg.norm(points - escape.xy, axis=1) <= self.config.clearance
+            ok |= near & (distance >= escape.floor)
         return ok
 
     def segment_free(
-        self, a: np.ndarray, b: np.ndarray, start: StartInCollision | None = None
+        self, a: np.ndarray, b: np.ndarray, escape: StartInCollision | None = None
     ) -> bool:
         n = max(2, int(math.ceil(float(np.linalg.norm(b - a)) / CHECK_STEP)) + 1)
         t = np.linspace(0.0, 1.0, n)[:, None]
-        return bool(self.free(a[None] * (1 - t) + b[None] * t, start).all())
+        return bool(self.free(a[None] * (1 - t) + b[None] * t, escape).all())
 
     def start_in_collision(self, start: np.ndarray) -> StartInCollision | None:
         """``start``'s exemption (:class:`StartInCollision`), or None where it is free."""
@@ -146,7 +147,9 @@ class BasePlanner:
         path = self._rrt_connect(start, goal, rng, escape)
         return self._shortcut(path, rng, escape)
 
-    def _rrt_connect(self, start, goal, rng, escape=None) -> list[np.ndarray]:
+    def _rrt_connect(
+        self, start, goal, rng, escape: StartInCollision | None = None
+    ) -> list[np.ndarray]:
         cfg = self.config
         trees = [([start], [-1]), ([goal], [-1])]
         for it in range(cfg.max_iterations):
@@ -170,7 +173,7 @@ class BasePlanner:
                     return path if it % 2 == 0 else path[::-1]
         raise NoPathFound(f"no path from {start.round(3).tolist()} to {goal.round(3).tolist()}")
 
-    def _extend(self, tree, q, escape=None) -> int | None:
+    def _extend(self, tree, q, escape: StartInCollision | None = None) -> int | None:
         nodes, parents = tree
         arr = np.asarray(nodes)
         i = int(np.argmin(((arr - q) ** 2).sum(axis=1)))
@@ -192,7 +195,9 @@ class BasePlanner:
             i = parents[i]
         return out  # node ... root
 
-    def _shortcut(self, path: list[np.ndarray], rng, escape=None) -> list[np.ndarray]:
+    def _shortcut(
+        self, path: list[np.ndarray], rng, escape: StartInCollision | None = None
+    ) -> list[np.ndarray]:
         path = list(path)
         for _ in range(self.config.shortcut_rounds):
             if len(path) < 3:
