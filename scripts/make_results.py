@@ -292,7 +292,8 @@ def robustness_sections() -> list[str]:
             "(commit 617dc4e). `stick_button_1000_v4` is `stick_button_1000_v3`'s protocol "
             "after Stick Button's back-off learned to keep a stick still in hand (commits "
             'd2c41ba, 0ec81e1; docs/WORLDS.md, "Backing off"), fresh demonstrations and '
-            "skills. `doors_1000_v5` evaluates `doors_1000_v4`'s skills again after Doors' "
+            "skills; `stick_button_1000_v4_releases` the same skills with `--watch-releases`. "
+            "`doors_1000_v5` evaluates `doors_1000_v4`'s skills again after Doors' "
             "base planner stopped failing from a start near a wall (commit 8aee595: the same "
             "outcomes, less agent time; docs/WORLDS.md, \"MoveToDoor's base planner at a "
             'wall").\n',
