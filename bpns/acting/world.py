@@ -60,17 +60,15 @@ class WorldRun:
         self.world_clock = Stopwatch()
         self.predictor: InFlightPredictor | None = None
         self._latency_told = False
-        self._ground: tuple[GroundAtom, ...] | None = None  # built by atoms()
+        # its objects never change within a task: their ground atoms are built once
+        # (a 6x6 Doors map has over 6,000)
+        self._ground = ground_atoms(task.init.objects, env.predicates)
 
     @property
     def used(self) -> int:
         return len(self.actions)
 
     def atoms(self) -> frozenset[GroundAtom]:
-        """The world's atoms now (its objects never change within a task, so their ground
-        atoms are built once: a 6x6 Doors map has over 6,000)."""
-        if self._ground is None:
-            self._ground = ground_atoms(self.task.init.objects, self.env.predicates)
         return true_atoms(self.state, self._ground)
 
     def goal_holds(self) -> bool:

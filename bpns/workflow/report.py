@@ -90,10 +90,10 @@ def report_evaluation(
                 video_failed = err  # raised once the results are in place: they stand
             except ValueError as err:
                 raise TaskNotEvaluatedError(str(err)) from None
-            if rendered is None:
-                no_video_of = solving.label
-            else:
+            if rendered is not None:
                 rendered = dataclasses.replace(rendered, video=video, png=video.with_suffix(".png"))
+            elif video_failed is None:
+                no_video_of = solving.label
         written = None
         if out is not None:
             if rendered is not None:  # the page shows it, not a second rendering of it

@@ -136,21 +136,9 @@ def _door_in_room(state: State, objs: Sequence[Object]) -> bool:
     return door_in_room(state, objs[0], objs[1])
 
 
-# Two doors in one room are within ROOM_SIZE + 2 * 0.05 of each other (both lie within
-# ROOM_SIZE / 2 + 0.05 of its centre); the slack covers rounding. Checked first, it skips
-# the scan over rooms for all but a door's neighbours: the scan made abstracting a 6x6
-# floor plan (60 doors, 36 rooms: 130 000 door-room tests) cost more than its physics.
-_SHARE_ROOM_REACH = ROOM_SIZE + 2 * 0.05 + 1e-6
-
-
 def _doors_share_room(state: State, objs: Sequence[Object]) -> bool:
     d1, d2 = objs
     if d1 == d2:
-        return False
-    gap = math.hypot(
-        state.get(d1, "x") - state.get(d2, "x"), state.get(d1, "y") - state.get(d2, "y")
-    )
-    if gap > _SHARE_ROOM_REACH:
         return False
     rooms = _rooms_of_doors(state)
     return not rooms[d1].isdisjoint(rooms[d2])
