@@ -150,13 +150,20 @@ class ClosedLoopPlanner:
         deadline: float,
         stats: ClosedLoopStats,
         resume_from: frozenset[GroundAtom] | None = None,
+        tried: Sequence[tuple[GroundOperator, ...]] = (),
     ) -> list[PlannedStep] | FailureReason:
         remaining = deadline - time.monotonic()
         if remaining <= 0:
             return FailureReason.TIMEOUT
         config = dataclasses.replace(self.config, timeout=remaining)
         result = plan(
-            self._model_task(world), self.skills, self.model, config, rng, resume_from=resume_from
+            self._model_task(world),
+            self.skills,
+            self.model,
+            config,
+            rng,
+            resume_from=resume_from,
+            tried=tried,
         )
         s = result.stats
         stats.nodes_created += s.nodes_created
@@ -418,19 +425,25 @@ class ClosedLoopPlanner:
         stats: ClosedLoopStats,
     ) -> list[PlannedStep] | FailureReason:
         """The rest of the same abstract plan from where it still applies, else a new plan,
-        else (no abstract plan at all) one that first finishes a skill stopped midway."""
+        else (no abstract plan at all) one that first finishes a skill stopped midway. The
+        new plans pass over the rest already refined in vain from this state (``tried``):
+        refined again, its failure cost a Doors task another ten samples at the skill's
+        horizon."""
+        tried: tuple[tuple[GroundOperator, ...], ...] = ()
         j = repair_point(needed, world.atoms())
         if j is not None and j < len(steps):
-            rest = self._refine_rest(world, [s.op for s in steps[j:]], rng, deadline, stats)
+            ops = [s.op for s in steps[j:]]
+            rest = self._refine_rest(world, ops, rng, deadline, stats)
             if rest is not None:
                 world.event(
                     "replanned",
                     f"replan {stats.replans}: the plan's last {len(rest)} steps refined again",
                 )
                 return rest
-        new = self._plan(world, rng, deadline, stats)
+            tried = (tuple(ops),)
+        new = self._plan(world, rng, deadline, stats, tried=tried)
         if new is FailureReason.NO_ABSTRACT_PLAN and self.execution.resume_stopped:
-            new = self._plan(world, rng, deadline, stats, resume_from=seen)
+            new = self._plan(world, rng, deadline, stats, resume_from=seen, tried=tried)
             if not isinstance(new, FailureReason) and not new[0].op.applicable(world.atoms()):
                 world.event(
                     "replanned",

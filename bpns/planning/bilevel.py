@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections import Counter
-from collections.abc import Iterator, Sequence
+from collections.abc import Collection, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -108,6 +108,7 @@ def plan(
     rng: np.random.Generator,
     *,
     resume_from: frozenset[GroundAtom] | None = None,
+    tried: Collection[tuple[GroundOperator, ...]] = (),
 ) -> PlanResult:
     """Solve ``task`` with ``skills`` by bilevel planning within ``config.timeout`` seconds.
 
@@ -116,7 +117,12 @@ def plan(
     demonstrations never stop one); the first step may be an operator that lacks only
     preconditions it deletes itself (:func:`bpns.planning.search.skeletons`'s
     ``resume``), grounded as if the atoms seen earlier still held. Refinement in the
-    model decides whether the skill really finishes from there."""
+    model decides whether the skill really finishes from there.
+
+    ``tried``: abstract plans the caller already refined from this very state and saw
+    fail (a closed loop's repair of the rest of its plan). They are passed over, as the
+    search passes over the skeletons it yielded itself: a skeleton is refined once per
+    call, and the caller's attempt was that once."""
     start = time.monotonic()
     deadline = start + config.timeout
     by_operator = _skills_by_operator(skills)
@@ -128,7 +134,9 @@ def plan(
         return acc.result(True, task, action_dim, None, AbstractPlan((), (init_atoms,), 0.0))
 
     try:
-        generator = _Skeletons(task, by_operator, init_atoms, config, deadline, acc, resume_from)
+        generator = _Skeletons(
+            task, by_operator, init_atoms, config, deadline, acc, resume_from, tried
+        )
         refiner = _Refiner(
             task,
             by_operator,
@@ -144,7 +152,9 @@ def plan(
         return acc.result(False, task, action_dim, FailureReason.TIMEOUT, None)
     if solved is not None:
         return solved
-    reason = FailureReason.REFINEMENT_FAILED if acc.plans_tried else FailureReason.NO_ABSTRACT_PLAN
+    # a plan passed over because the caller had tried it was still an abstract plan
+    tried_any = acc.plans_tried or acc.search.skipped
+    reason = FailureReason.REFINEMENT_FAILED if tried_any else FailureReason.NO_ABSTRACT_PLAN
     return acc.result(False, task, action_dim, reason, None)
 
 
@@ -174,6 +184,7 @@ class _Skeletons:
         deadline: float,
         acc: _Accumulator,
         resume_from: frozenset[GroundAtom] | None = None,
+        tried: Collection[tuple[GroundOperator, ...]] = (),
     ) -> None:
         t0 = time.monotonic()
         try:
@@ -199,6 +210,7 @@ class _Skeletons:
         self.acc = acc
         self.resume = resume_from is not None
         self.yielded: set[tuple[GroundOperator, ...]] = set()
+        self.skip = set(tried)  # passed over: yielded here or refined by the caller
         self.demotions = (
             None if config.demote_refuted is None else RefutedAchievers(config.demote_refuted)
         )
@@ -220,7 +232,7 @@ class _Skeletons:
             deadline=self.deadline,
             stats=self.acc.search,
             extra_cost=extra,
-            skip=self.yielded,
+            skip=self.skip,
             resume=self.resume,
         )
 
@@ -230,6 +242,7 @@ class _Skeletons:
         skeleton = next(self._search, None)
         if skeleton is not None:
             self.yielded.add(skeleton.operators)
+            self.skip.add(skeleton.operators)
         return skeleton
 
     def refined(self, skeleton: AbstractPlan, stats: RefinementStats) -> None:

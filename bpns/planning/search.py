@@ -71,6 +71,7 @@ class SearchStats:
     nodes_created: int = 0
     nodes_expanded: int = 0
     skeletons: int = 0
+    skipped: int = 0  # plans found but passed over (``skip``)
 
 
 class _Node:
@@ -168,6 +169,7 @@ def skeletons(
         state = node.state
         found = _extract(problem, node) if state & goal == goal else None
         if found is not None and found.operators in skip:
+            stats.skipped += 1
             admit_deferred()
             continue
         k = pops.get(state, 0) + 1

@@ -507,6 +507,39 @@ def test_a_replan_with_no_plan_from_where_the_skill_failed_backs_off_and_plans_a
     assert plan_reaches_goal(SlipOnceBacksOff(), task, solution.actions)
 
 
+class CountsPicksAway(PickFromHomeOnly):
+    """Counts the grips drawn for the robot away from home (where none refines)."""
+
+    away = 0
+
+    def __call__(self, state, objs, rng):
+        if state.get(objs[0], "x") > 0.5:
+            self.away += 1
+        return super().__call__(state, objs, rng)
+
+
+def test_a_repair_does_not_refine_again_the_rest_it_just_failed_to_refine():
+    # the stick slips; the rest of the plan (pick, press) is refined from there in vain
+    # (n_samples grips); the new plan then passes over that same abstract plan instead of
+    # drawing n_samples more grips for it, and the failure is still a failed refinement
+    model = toy.ToyStickButton()
+    sampler = CountsPicksAway(good=0.5)
+    skills = [
+        dataclasses.replace(s, sampler=sampler) if s.operator is toy.PICK_STICK else s
+        for s in toy.skills()
+    ]
+    solution = BilevelPlanning(model, skills, CONFIG).solve_in_world(
+        _far_button_task(),
+        model,
+        SlipOnce(),
+        np.random.default_rng(0),
+        20.0,
+        ExecutionConfig(back_off=False),
+    )
+    assert not solution.success and solution.reason is FailureReason.REFINEMENT_FAILED
+    assert sampler.away == CONFIG.n_samples
+
+
 def test_an_environment_without_a_back_off_fails_as_before():
     model, world = toy.ToyStickButton(), SlipOnce()
     skills = [
