@@ -20,10 +20,17 @@ from bpns.errors import BpnsError
 
 @dataclass(frozen=True, order=True)
 class Type:
-    """An object type: a name and the names of its real-valued features."""
+    """An object type: a name and the names of its real-valued features.
+
+    ``angles``: the features that are angles in radians read from a rotation, so that
+    values 2*pi apart are the same pose (a base's yaw, a hand's yaw from ``atan2``).
+    Learned networks see their sine and cosine, and subgoal offsets along them wrapped
+    into [-pi, pi): a Doors hand turning a handle past +-pi otherwise jumps by 2*pi in
+    the policy's input mid-skill."""
 
     name: str
     feature_names: tuple[str, ...]
+    angles: tuple[str, ...] = ()
     # predicates read features by name millions of times while a dataset is segmented:
     # the index and the hash are computed once (again on unpickling: string hashes
     # differ between processes)
@@ -31,14 +38,25 @@ class Type:
     _hash: int = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        unknown = [a for a in self.angles if a not in self.feature_names]
+        if unknown:
+            raise ValueError(
+                f"type {self.name!r}: angles {unknown} are not among its features "
+                f"{self.feature_names}"
+            )
         object.__setattr__(self, "_index", {f: i for i, f in enumerate(self.feature_names)})
-        object.__setattr__(self, "_hash", hash((self.name, self.feature_names)))
+        object.__setattr__(self, "_hash", hash((self.name, self.feature_names, self.angles)))
 
     def __hash__(self) -> int:
         return self._hash
 
-    def __reduce__(self) -> tuple[type[Type], tuple[str, tuple[str, ...]]]:
-        return (Type, (self.name, self.feature_names))
+    def __reduce__(self) -> tuple[type[Type], tuple[str, tuple[str, ...], tuple[str, ...]]]:
+        return (Type, (self.name, self.feature_names, self.angles))
+
+    @property
+    def angle_indices(self) -> tuple[int, ...]:
+        """The indices of :attr:`angles` among the features."""
+        return tuple(self._index[a] for a in self.angles)
 
     @property
     def dim(self) -> int:

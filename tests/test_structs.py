@@ -54,3 +54,13 @@ def test_types_compare_and_order_by_name_and_features_only():
     assert Type("block", ("x", "y")) == BLOCK and hash(Type("block", ("x", "y"))) == hash(BLOCK)
     assert Type("block", ("x",)) != BLOCK
     assert sorted([TARGET, BLOCK]) == [BLOCK, TARGET]
+
+
+def test_a_types_angles_must_be_features_and_survive_pickling():
+    with pytest.raises(ValueError, match=r"angles \['yaw'\] are not among its features"):
+        Type("robot", ("x",), angles=("yaw",))
+    robot = Type("robot", ("x", "yaw"), angles=("yaw",))
+    assert robot.angle_indices == (1,)
+    back = pickle.loads(pickle.dumps(robot))
+    assert back == robot and back.angles == ("yaw",) and hash(back) == hash(robot)
+    assert robot != Type("robot", ("x", "yaw"))

@@ -542,6 +542,7 @@ def _same_dims(a: ScopeDims, b: ScopeDims) -> bool:
         a.size == b.size
         and np.array_equal(a.state_dims, b.state_dims)
         and np.array_equal(a.subgoal_dims, b.subgoal_dims)
+        and np.array_equal(a.angles, b.angles)
     )
 
 

@@ -84,13 +84,21 @@ def policy_data(
     lent by operators with the same effects."""
     if shared is None:
         scopes = scope_trajectories(dataset)
-        dims = ScopeDims.from_scopes(scopes, config.change_tolerance, dataset.scope_size)
+        scope = dataset.bindings[0][: dataset.scope_size] if dataset.bindings else ()
+        dims = ScopeDims.from_scopes(
+            scopes, config.change_tolerance, dataset.scope_size, types=[o.type for o in scope]
+        )
         return scopes, dims, [seg.actions for seg in dataset.segments]
     scopes = [
         np.stack([s.vec(objs) for s in seg.states])
         for seg, objs in zip(shared.segments, shared.objects, strict=True)
     ]
-    dims = ScopeDims.from_scopes(scopes, config.change_tolerance, objects=shared.scope)
+    dims = ScopeDims.from_scopes(
+        scopes,
+        config.change_tolerance,
+        objects=shared.scope,
+        types=[o.type for o in shared.objects[0]] if shared.objects else (),
+    )
     return scopes, dims, [seg.actions for seg in shared.segments]
 
 

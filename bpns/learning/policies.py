@@ -4,7 +4,9 @@ A skill sees only its scope: the features of its parameters' objects, concatenat
 parameter order. The policy input is the scope without static dimensions, followed by
 the *relative* subgoal (subgoal - current) over the dimensions that change in the data;
 because the relative subgoal is recomputed every step, a policy conditioned on an
-absolute subgoal gets closed-loop feedback for free.
+absolute subgoal gets closed-loop feedback for free. Features an environment declares
+angles (``Type.angles``) enter as their sine and cosine, and their relative subgoal is
+wrapped into [-pi, pi) (:class:`ScopeDims`).
 
 Optionally the relative subgoal is given twice, the second time as
 ``tanh(relative / near_scale)``. Demonstrators switch behaviour within millimetres of
@@ -17,7 +19,7 @@ squashed copy resolves exactly that region (and is flat far away).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -25,7 +27,7 @@ from bpns.learning.config import MLPConfig
 from bpns.learning.operators import SkillDataset
 from bpns.nets.linear import LinearBase
 from bpns.nets.mlp import MLPParams, Regressor, train_regressor
-from bpns.structs import Object, State
+from bpns.structs import Object, State, Type
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,6 +42,9 @@ class ScopeDims:
     given, overrides it: the operator parameters (by index, in this order) that form the
     scope, e.g. only those of the add effects when a skill learns from the segments of
     operators that achieve the same effects from elsewhere (:mod:`bpns.learning.sharing`).
+    ``angles``: the scope dims its objects' types declare angles (``Type.angles``); the
+    networks see them through :meth:`inputs` and :meth:`offsets`, which are periodic
+    there. Skills learned before angles were declared have none.
     """
 
     size: int
@@ -47,6 +52,46 @@ class ScopeDims:
     subgoal_dims: np.ndarray
     num_objects: int | None = None
     objects: tuple[int, ...] | None = None
+    angles: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    def __post_init__(self) -> None:
+        periodic = set(np.asarray(self.angles).tolist())
+        sd, gd = self.state_dims, self.subgoal_dims
+        # the state dims' columns that are angles (sines there, cosines appended)
+        cols = [j for j, d in enumerate(sd.tolist()) if d in periodic]
+        object.__setattr__(self, "_sin_cols", np.asarray(cols, dtype=np.int64))
+        object.__setattr__(self, "_cos_dims", sd[cols] if cols else np.zeros(0, np.int64))
+        wrap = [k for k, d in enumerate(gd.tolist()) if d in periodic]
+        object.__setattr__(self, "_wrap_cols", np.asarray(wrap, dtype=np.int64))
+
+    @property
+    def input_width(self) -> int:
+        """How many numbers :meth:`inputs` gives per scope."""
+        return len(self.state_dims) + len(self._sin_cols)
+
+    @property
+    def angle_input_columns(self) -> frozenset[int]:
+        """The columns of :meth:`inputs` that carry an angle (its sine or cosine)."""
+        n = len(self.state_dims)
+        cos = range(n, n + len(self._sin_cols))
+        return frozenset((*self._sin_cols.tolist(), *cos))
+
+    def inputs(self, x: np.ndarray) -> np.ndarray:
+        """The networks' view of scope vectors ``x`` (..., size): the state dims, with
+        an angle's sine in its place and its cosine appended after them."""
+        s = x[..., self.state_dims]
+        if not len(self._sin_cols):
+            return s
+        s = s.copy()
+        s[..., self._sin_cols] = np.sin(s[..., self._sin_cols])
+        return np.concatenate((s, np.cos(x[..., self._cos_dims])), axis=-1)
+
+    def offsets(self, goal: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """``goal - x`` over the subgoal dims, angles wrapped into [-pi, pi)."""
+        rel = goal[..., self.subgoal_dims] - x[..., self.subgoal_dims]
+        if len(self._wrap_cols):
+            rel[..., self._wrap_cols] = wrap_angle(rel[..., self._wrap_cols])
+        return rel
 
     def scope(self, objects: Sequence[Object]) -> Sequence[Object]:
         if self.objects is not None:
@@ -66,19 +111,25 @@ class ScopeDims:
         tolerance: float = 0.0,
         num_objects: int | None = None,
         objects: tuple[int, ...] | None = None,
+        types: Sequence[Type] = (),
     ) -> ScopeDims:
-        """``scopes[i]`` is the (steps + 1, size) scope trajectory of segment i."""
+        """``scopes[i]`` is the (steps + 1, size) scope trajectory of segment i;
+        ``types``: the scope's object types in order (where its angles are)."""
         if not scopes:
             raise ValueError("no segments to compute scope dimensions from")
         allrows = np.concatenate(scopes, axis=0)
+        angles = scope_angles(types)
         spread = allrows.max(axis=0) - allrows.min(axis=0)
-        change = np.max([np.abs(s[-1] - s[0]) for s in scopes], axis=0)
+        ends = np.stack([s[-1] - s[0] for s in scopes])
+        ends[:, angles] = wrap_angle(ends[:, angles])
+        change = np.abs(ends).max(axis=0)
         return cls(
             size=allrows.shape[1],
             state_dims=np.flatnonzero(spread > tolerance),
             subgoal_dims=np.flatnonzero(change > tolerance),
             num_objects=num_objects,
             objects=objects,
+            angles=angles,
         )
 
     def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
@@ -90,6 +141,8 @@ class ScopeDims:
         }
         if self.objects is not None:
             out[f"{prefix}objects"] = np.array(self.objects, dtype=np.int64)
+        if len(self.angles):
+            out[f"{prefix}angles"] = np.asarray(self.angles, dtype=np.int64)
         return out
 
     @classmethod
@@ -102,7 +155,22 @@ class ScopeDims:
             subgoal_dims=np.array(arrays[f"{prefix}subgoal_dims"], dtype=np.int64),
             num_objects=None if num < 0 else num,
             objects=None if chosen is None else tuple(int(i) for i in chosen),
+            angles=np.array(arrays.get(f"{prefix}angles", ()), dtype=np.int64),
         )
+
+
+def wrap_angle(a: np.ndarray) -> np.ndarray:
+    """Angles (radians) wrapped into [-pi, pi)."""
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def scope_angles(types: Sequence[Type]) -> np.ndarray:
+    """The indices of declared angles (``Type.angles``) in a scope of ``types``."""
+    out, offset = [], 0
+    for t in types:
+        out.extend(offset + i for i in t.angle_indices)
+        offset += t.dim
+    return np.asarray(out, dtype=np.int64)
 
 
 def scope_trajectories(dataset: SkillDataset) -> list[np.ndarray]:
@@ -128,9 +196,9 @@ def policy_training_data(
     xs, ys = [], []
     for scope, acts in zip(scopes, actions, strict=True):
         current = scope[:-1]
-        parts = [current[:, dims.state_dims]]
+        parts = [dims.inputs(current)]
         if use_subgoals:
-            rel = (scope[-1] - current)[:, dims.subgoal_dims]
+            rel = dims.offsets(scope[-1], current)
             parts.append(rel)
             if near_scale is not None:
                 parts.append(np.tanh(rel / near_scale))
@@ -158,22 +226,21 @@ class LearnedPolicy:
         self.near_scale = near_scale
         self.base = base
         self._net = Regressor(params)
-        self._sd, self._gd = dims.state_dims, dims.subgoal_dims
 
     def __call__(self, state: State, objects: Sequence[Object], subgoal: np.ndarray) -> np.ndarray:
-        x = state.vec(self.dims.scope(objects))
-        if x.shape[0] != self.dims.size:
-            raise ValueError(
-                f"scope has {x.shape[0]} features, the policy expects {self.dims.size}"
-            )
+        dims = self.dims
+        x = state.vec(dims.scope(objects))
+        if x.shape[0] != dims.size:
+            raise ValueError(f"scope has {x.shape[0]} features, the policy expects {dims.size}")
+        s = dims.inputs(x)
         if self.use_subgoals:
-            rel = subgoal[self._gd] - x[self._gd]
+            rel = dims.offsets(subgoal, x)
             if self.near_scale is None:
-                x = np.concatenate((x[self._sd], rel))
+                x = np.concatenate((s, rel))
             else:
-                x = np.concatenate((x[self._sd], rel, np.tanh(rel / self.near_scale)))
+                x = np.concatenate((s, rel, np.tanh(rel / self.near_scale)))
         else:
-            x = x[self._sd]
+            x = s
         out = self._net(x)
         return out if self.base is None else out + self.base(x)
 

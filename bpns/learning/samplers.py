@@ -102,7 +102,7 @@ class LearnedSampler:
         self, state: State, objects: Sequence[Object], rng: np.random.Generator
     ) -> np.ndarray:
         x = self._start(state, objects)
-        s = x[self.dims.state_dims]
+        s = self.dims.inputs(x)
         if self.novel(s):
             raise NoSubgoal("the skill was never demonstrated from a start like this one")
         mean, std = self.mean_std(s)
@@ -145,8 +145,8 @@ class LearnedSampler:
         if self._cls is None:
             return 1.0
         x = self._start(state, objects)
-        sd, gd = self.dims.state_dims, self.dims.subgoal_dims
-        return float(self._cls.prob(np.concatenate((x[sd], subgoal[gd] - x[gd]))))
+        dims = self.dims
+        return float(self._cls.prob(np.concatenate((dims.inputs(x), dims.offsets(subgoal, x)))))
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         out = {
@@ -198,7 +198,7 @@ class CurrentStateSampler:
 def _row(start: State, end: State, objects: Sequence[Object], dims: ScopeDims) -> np.ndarray:
     scope = dims.scope(objects)
     s0, s1 = start.vec(scope), end.vec(scope)
-    return np.concatenate((s0[dims.state_dims], (s1 - s0)[dims.subgoal_dims]))
+    return np.concatenate((dims.inputs(s0), dims.offsets(s1, s0)))
 
 
 def _explains(operator: STRIPSOperator, binding: tuple[Object, ...], segment: Segment) -> bool:
@@ -242,8 +242,8 @@ def sampler_training_data(
     """
     starts = np.stack([sc[0] for sc in scopes])
     ends = np.stack([sc[-1] for sc in scopes])
-    gen_x = starts[:, dims.state_dims]
-    gen_y = (ends - starts)[:, dims.subgoal_dims]
+    gen_x = dims.inputs(starts)
+    gen_y = dims.offsets(ends, starts)
     positives = np.concatenate((gen_x, gen_y), axis=1)
     rng = np.random.default_rng(seed)
     cap = max_negative_bindings_per_segment
@@ -330,8 +330,11 @@ def context_dims(gen_x: np.ndarray, gen_y: np.ndarray, dims: ScopeDims) -> np.nd
     third cup than in any demonstration's second)."""
     spread = gen_x.max(axis=0) - gen_x.min(axis=0) if len(gen_x) else np.zeros(gen_x.shape[1])
     where = {int(d): k for k, d in enumerate(dims.subgoal_dims)}
+    periodic = dims.angle_input_columns  # a sine's range is no interval of starts
     keep = []
     for j, d in enumerate(dims.state_dims):
+        if j in periodic:
+            continue
         k = where.get(int(d))
         moved = 0.0 if k is None or not len(gen_y) else float(np.abs(gen_y[:, k]).max())
         if spread[j] > 0 and moved <= CONTEXT_MOVE * spread[j]:

@@ -6,12 +6,15 @@ import torch
 
 from bpns.learning.config import LearningConfig, MLPConfig
 from bpns.learning.jobs import learn_policy
+from bpns.learning.operators import SkillDataset
 from bpns.learning.policies import (
     LearnedPolicy,
     ScopeDims,
     policy_training_data,
     scope_trajectories,
+    wrap_angle,
 )
+from bpns.structs import Object, Segment, State, STRIPSOperator, Type, Variable
 from tests import toy_learning as toy
 
 CONFIG = LearningConfig(policy=MLPConfig(num_steps=2000, batch_size=128))
@@ -164,3 +167,60 @@ def test_a_linear_base_keeps_a_proportional_command_near_the_goal_from_few_segme
     np.testing.assert_array_equal(
         back(state, (toy.POINT_OBJ,), goal), with_base(state, (toy.POINT_OBJ,), goal)
     )
+
+
+# -- angles (Type.angles) ---------------------------------------------------------------
+DIAL = Type("dial", ("turn", "size"), angles=("turn",))
+PLAIN_DIAL = Type("dial", ("turn", "size"))
+
+
+def _dial_dataset(kind: Type, n: int, seed: int) -> SkillDataset:
+    """Segments of a = GAIN * wrap(goal - turn) on a dial read in [-pi, pi), each
+    starting within 0.4 rad of the wrap and turning to a goal within 0.4 rad of it."""
+    rng = np.random.default_rng(seed)
+    dial = Object("d", kind)
+    segs = []
+    for _ in range(n):
+        start, goal = wrap_angle(np.pi + rng.uniform(-0.4, 0.4, size=2))
+        size = rng.uniform(0.5, 1.0)
+        states = [State({dial: np.array([start, size])})]
+        actions = []
+        for _ in range(8):
+            turn = states[-1].data[dial][0]
+            a = np.array([toy.GAIN * wrap_angle(goal - turn)])
+            actions.append(a)
+            states.append(State({dial: np.array([wrap_angle(turn + a[0]), size])}))
+        segs.append(Segment(tuple(states), np.array(actions), frozenset(), frozenset()))
+    op = STRIPSOperator("Turn", (Variable("?d", kind),), frozenset(), frozenset(), frozenset())
+    return SkillDataset(op, tuple(segs), tuple((dial,) for _ in segs))
+
+
+def test_an_angle_enters_as_sine_and_cosine_and_its_offset_wraps():
+    scopes = [np.array([[3.10, 1.0], [-3.12, 1.0]]), np.array([[-3.0, 2.0], [-3.0, 2.0]])]
+    dims = ScopeDims.from_scopes(scopes, types=[DIAL])
+    assert dims.angles.tolist() == [0] and dims.input_width == 3  # sin, size, cos
+    x = dims.inputs(np.array(scopes[0]))
+    np.testing.assert_allclose(x[:, 1], [1.0, 1.0])
+    np.testing.assert_allclose(
+        x[:, [0, 2]], np.stack([np.sin([3.10, -3.12]), np.cos([3.10, -3.12])]).T
+    )
+    # across the wrap the dial turned by 0.063 rad, not by -6.22
+    np.testing.assert_allclose(dims.offsets(scopes[0][1], scopes[0][0]), [2 * np.pi - 6.22])
+    back = ScopeDims.from_arrays(dims.to_arrays())
+    assert back.angles.tolist() == [0] and back.input_width == 3
+    old = {k: v for k, v in dims.to_arrays().items() if k != "angles"}
+    assert ScopeDims.from_arrays(old).angles.tolist() == []  # skills learned before angles
+
+
+def test_a_policy_turning_a_dial_across_pi_learns_the_short_way_round():
+    # demonstrations start and end on either side of +-pi; declared an angle, the
+    # cloned policy turns 0.08 rad forward from 3.10 to -3.10 as its demonstrator does;
+    # read as a plain number it sees a goal 6.2 rad back and turns the long way
+    config = LearningConfig(policy=MLPConfig(num_steps=1500, batch_size=128))
+    goal = np.array([-3.10, 0.7])
+    for kind, fine in ((DIAL, True), (PLAIN_DIAL, False)):
+        policy = learn_policy(_dial_dataset(kind, 150, seed=0), config, seed=0)
+        dial = Object("d", kind)
+        a = policy(State({dial: np.array([3.10, 0.7])}), (dial,), goal)[0]
+        expected = toy.GAIN * wrap_angle(goal[0] - 3.10)
+        assert bool(abs(a - expected) < 0.02) is fine, (kind, a, expected)

@@ -37,7 +37,7 @@ MAX_ARRAY_BYTES = 1 << 26
 MAX_LAYERS = 64
 
 _NET_KEY = r"(input_mean|input_std|output_mean|output_std|input_low|input_high|[wb]\d{1,2})"
-_DIMS_KEY = r"dims/(size|state_dims|subgoal_dims|num_objects|objects)"
+_DIMS_KEY = r"dims/(size|state_dims|subgoal_dims|num_objects|objects|angles)"
 _BASE_KEY = r"linear/([wb]0|input_low|input_high)"
 POLICY_KEYS = re.compile(rf"{_DIMS_KEY}|net/{_NET_KEY}|{_BASE_KEY}|use_subgoals|near_scale")
 SAMPLER_KEYS = re.compile(
@@ -354,8 +354,8 @@ def _read_npy(member: Any, where: str) -> np.ndarray:
 def check_scope_dims(dims: Any, scope_size: int, where: str) -> None:
     """A :class:`ScopeDims` against the size its operator's scope objects give."""
     _require(dims.size == scope_size, f"{where}: scope size {dims.size}, operator's {scope_size}")
-    for name in ("state_dims", "subgoal_dims"):
-        d = getattr(dims, name)
+    for name in ("state_dims", "subgoal_dims", "angles"):
+        d = np.asarray(getattr(dims, name))
         _require(
             d.ndim == 1 and np.all((d >= 0) & (d < scope_size)) and len(np.unique(d)) == len(d),
             f"{where}: {name} {d.tolist()} out of range for a scope of {scope_size}",
@@ -394,7 +394,7 @@ def check_skill_arrays(policy: Any, sampler: Any, scope_size: int, name: str) ->
     """A loaded policy and (learned) sampler against the operator's scope size."""
     dims = policy.dims
     check_scope_dims(dims, scope_size, f"{name} policy")
-    ns, ng = len(dims.state_dims), len(dims.subgoal_dims)
+    ns, ng = dims.input_width, len(dims.subgoal_dims)
     if policy.near_scale is not None:
         _require(0 < policy.near_scale < math.inf, f"{name} policy: near_scale")
     n_in = ns + (ng * (2 if policy.near_scale is not None else 1) if policy.use_subgoals else 0)
@@ -408,7 +408,7 @@ def check_skill_arrays(policy: Any, sampler: Any, scope_size: int, name: str) ->
         return
     sdims = sampler.dims
     check_scope_dims(sdims, scope_size, f"{name} sampler")
-    ns, ng = len(sdims.state_dims), len(sdims.subgoal_dims)
+    ns, ng = sdims.input_width, len(sdims.subgoal_dims)
     _require(1 <= sampler.max_tries <= 1_000_000, f"{name} sampler: max_tries")
     check_network(sampler.generator_params, ns, lambda n: n == 2 * ng, f"{name} generator")
     _require(sampler.generator_params.output_mean.shape == (ng,), f"{name} generator: output stats")
