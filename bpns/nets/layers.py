@@ -86,15 +86,20 @@ def layers_from_arrays(arrays: Mapping[str, np.ndarray], prefix: str = "") -> La
     return tuple(layers)
 
 
+class LayerShapeError(ValueError):
+    """A network's saved layers do not chain (a hand-edited or foreign weights file)."""
+
+
 def check_layers(layers: Layers, fan_in: int, where: str) -> int:
     """The output width of ``layers`` if their shapes chain from ``fan_in`` inputs (each
-    layer at least one unit wide); ValueError naming the first layer that does not."""
+    layer at least one unit wide); :class:`LayerShapeError` naming the first layer that
+    does not."""
     width = fan_in
     for k, (w, b) in enumerate(layers):
         if not (
             w.ndim == 2 and w.shape[0] == width and w.shape[1] >= 1 and b.shape == (w.shape[1],)
         ):
-            raise ValueError(
+            raise LayerShapeError(
                 f"{where}: layer {k} has shapes {w.shape}, {b.shape}; expected ({width}, n), (n,)"
             )
         width = w.shape[1]

@@ -23,6 +23,7 @@ import numpy as np
 from bpns.nets.layers import (
     Adam,
     Layers,
+    check_layers,
     count_layers,
     layers_from_arrays,
     layers_to_arrays,
@@ -124,6 +125,8 @@ class MLPParams:
         get = lambda key: np.array(arrays[f"{prefix}{key}"], dtype=np.float64)  # noqa: E731
         boxed = f"{prefix}input_low" in arrays and f"{prefix}input_high" in arrays
         layers = layers_from_arrays(arrays, prefix)
+        inputs = get("input_mean")
+        check_layers(layers, inputs.shape[0] if inputs.ndim == 1 else -1, prefix.rstrip("/"))
         return cls(
             weights=tuple(w for w, _ in layers),
             biases=tuple(b for _, b in layers),

@@ -117,7 +117,9 @@ CASES = [
     (_index(lambda i: i["config"].__setitem__("seed", "zero")), r"config.seed"),
     (_index(lambda i: i["config"]["policy"].__setitem__("input_margin", "x")), r"input_margin"),
     (_index(lambda i: i.__setitem__("skills", {"a": 1})), r"'skills' is not a list"),
-    (_set("net/w1", lambda w: w[:, :-1]), r"Holding policy: layer 1 has shapes"),
+    (_set("net/w1", lambda w: w[:, :-1]), r"Holding.policy.npz: net: layer 1 has shapes"),
+    # the first layer: numpy's broadcast error named no layer (probe of issue 41)
+    (_set("net/w0", lambda w: w[:, :-1]), r"Holding.policy.npz: net: layer 0 has shapes"),
     (_set("net/w0", lambda w: w * np.nan), r"Holding policy: weights hold NaN or inf"),
     (
         _set("generator/b0", lambda b: b + np.inf, "Holding.sampler.npz"),

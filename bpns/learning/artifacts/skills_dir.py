@@ -46,6 +46,7 @@ from bpns.learning.given import BoundPolicy, BoundSampler, GivenSkill
 from bpns.learning.pipeline import LearnedSkills, LearningStats, SkillStats
 from bpns.learning.policies import LearnedPolicy
 from bpns.learning.samplers import CurrentStateSampler, LearnedSampler
+from bpns.nets.layers import LayerShapeError
 from bpns.structs import LiftedAtom, Predicate, Skill, STRIPSOperator, Type, Variable
 
 FORMAT = "bpns-skills"
@@ -397,12 +398,15 @@ def _read_skill(
 
 
 def _from_arrays(cls: Any, path: Path, allowed: Any) -> Any:
-    """``cls.from_arrays`` of the weights file ``path``; a missing array is named with
-    its file (a bare KeyError said neither)."""
+    """``cls.from_arrays`` of the weights file ``path``; a missing array or a network
+    whose shapes do not chain is named with its file (a bare KeyError said neither,
+    and numpy's broadcast error named no layer)."""
     try:
         return cls.from_arrays(checks.read_npz(path, allowed))
     except KeyError as err:
         raise ValueError(f"{path.name} lacks the array {err.args[0]!r}") from None
+    except LayerShapeError as err:
+        raise ValueError(f"{path.name}: {err}") from None
 
 
 def _config_from_json(d: Mapping[str, Any], complete: bool = True) -> LearningConfig:
