@@ -21,10 +21,13 @@ asked for (:func:`bpns.inspect.extras.require`).
 
 from __future__ import annotations
 
+import errno
 import io
 import os
+import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import rerun as rr
@@ -33,6 +36,7 @@ from PIL import Image
 
 from bpns.atomic import atomic_path
 from bpns.env.scene import SceneGeom, SceneTrack
+from bpns.errors import BpnsError
 from bpns.execution.rollouts import REACHED, PlanStep
 from bpns.execution.video import VideoError
 from bpns.inspect.episodes import Episode, atom_label, atom_timeline, skill_per_state
@@ -47,6 +51,10 @@ EVENT_LEVELS = {
     "slowed": "INFO",
     "replan_failed": "ERROR",
 }
+
+
+class RecordingError(BpnsError):
+    """A recording could not be written (the partial file is removed)."""
 
 
 @dataclass(frozen=True)
@@ -81,9 +89,24 @@ def write_recording(
         _log_attempts(rec, episode)
         for camera in options.cameras:
             _log_camera(rec, episode, camera, options)
-        rec.flush()
+        try:
+            rec.flush()
+        except RuntimeError as err:  # rerun's file writer died: it says only that
+            raise _write_failure(out, err) from None
         rec.disconnect()
     return len(states)
+
+
+def _write_failure(out: str | os.PathLike, err: RuntimeError) -> Exception:
+    """Why rerun could not write ``out``: a full disk as the OSError a command reports in
+    one line (:func:`bpns.atomic.storage_problem`), else :class:`RecordingError`."""
+    try:
+        free = shutil.disk_usage(Path(out).absolute().parent).free
+    except OSError:
+        free = None
+    if free is not None and free < 1 << 20:
+        return OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(out))
+    return RecordingError(f"cannot write {out}: rerun's file writer stopped ({err})")
 
 
 def _index(n: int, track: SceneTrack | None) -> list[rr.TimeColumn]:

@@ -141,3 +141,30 @@ def test_a_demonstration_recording_carries_camera_images_at_every_step(
         assert list(at) == list(range(steps)) and all(len(b[0]) > 100 for b in blobs)
     assert rec.children("plan") == {"skill"}  # a demonstration has no skills to show
     assert "HandEmpty(robot)" in rec.children("atoms")
+
+
+@pytest.mark.parametrize("free, message", [(4096, "No space left on device"), (10**12, "stopped")])
+def test_a_recording_rerun_cannot_write_is_one_error_line_and_no_file(
+    oracle_rollouts, tmp_path, monkeypatch, capsys, free, message
+):
+    # rerun reports a writer that died (a full disk: probe of issue 41) only as a
+    # RuntimeError; the command says why in one line and leaves no partial file
+    import rerun as rr
+
+    from bpns.inspect import recording
+
+    def dead_writer(self, *args, **kwargs):
+        raise RuntimeError("File-writer thread shut down prematurely")
+
+    monkeypatch.setattr(rr.RecordingStream, "flush", dead_writer)
+    monkeypatch.setattr(
+        recording.shutil, "disk_usage", lambda path: shutil._ntuple_diskusage(1, 1, free)
+    )
+    out = tmp_path / "task0.rrd"
+    code = main(
+        ["view", str(oracle_rollouts[("cover", "solved")]), "--task", "0"] + ["--out", str(out)]
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].startswith("bpns: error: cannot write")
+    assert message in err[0]
+    assert list(tmp_path.iterdir()) == []
