@@ -52,14 +52,8 @@ def required_angle(mass: float, friction: float, target_rot: float) -> float:
     return math.tanh(target_rot) * (math.sin(mass) + math.cos(friction) * math.sqrt(mass))
 
 
-# wrist: the hand's yaw in the world; twist: the arm's last joint (which turns the hand).
-# yaw and wrist are angles (the base's yaw joint turns without limit, the wrist is read
-# with atan2): learned skills see their sine and cosine (Type.angles)
-ROBOT = Type(
-    "robot",
-    ("x", "y", "yaw", "hand_x", "hand_y", "hand_z", "wrist", "fingers", "twist"),
-    angles=("yaw", "wrist"),
-)
+# wrist: the hand's yaw in the world; twist: the arm's last joint (which turns the hand)
+ROBOT = Type("robot", ("x", "y", "yaw", "hand_x", "hand_y", "hand_z", "wrist", "fingers", "twist"))
 DOOR = Type(
     "door",
     (
