@@ -296,7 +296,9 @@ def robustness_sections() -> list[str]:
             "`doors_1000_v5` evaluates `doors_1000_v4`'s skills again after Doors' "
             "base planner stopped failing from a start near a wall (commit 8aee595: the same "
             "outcomes, less agent time; docs/WORLDS.md, \"MoveToDoor's base planner at a "
-            'wall").\n',
+            'wall"). `doors_1000_v7` evaluates them again, closed loop only, after a '
+            "repair stopped refining the same abstract plan twice from one state (commit "
+            'de2797a; docs/WORLDS.md, "A repair does not refine the same plan twice").\n',
         )
     return out
 
