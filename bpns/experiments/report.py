@@ -53,7 +53,8 @@ def write_report(
             figures.append((f"cost_vs_{config.axis_name}", f"cost vs {config.axis_name} count"))
             written += save_figure(cost_vs_objects(rows), out / figures[1][0])
     elif rows and config.worlds:  # the demos and time figures would mix the worlds
-        figures = [(FIG_WORLD, "success by world, closed and open loop")]
+        shown = " and ".join(e.replace("-", " ") for e in config.executions) or "closed loop"
+        figures = [(FIG_WORLD, f"success by world, {shown}")]
         written += save_figure(success_vs_world(rows), out / FIG_WORLD)
     elif rows:
         written += save_figure(success_vs_demos(rows), out / FIG_DEMOS)
