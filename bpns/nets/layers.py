@@ -15,6 +15,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from bpns.errors import BpnsError
+
 if TYPE_CHECKING:
     import torch
 
@@ -86,7 +88,7 @@ def layers_from_arrays(arrays: Mapping[str, np.ndarray], prefix: str = "") -> La
     return tuple(layers)
 
 
-class LayerShapeError(ValueError):
+class LayerShapeError(BpnsError, ValueError):
     """A network's saved layers do not chain (a hand-edited or foreign weights file)."""
 
 
