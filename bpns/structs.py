@@ -25,8 +25,8 @@ class Type:
     ``angles``: the features that are angles in radians read from a rotation, so that
     values 2*pi apart are the same pose (a base's yaw, a hand's yaw from ``atan2``).
     Learned networks see their sine and cosine, and subgoal offsets along them wrapped
-    into [-pi, pi): a Doors hand turning a handle past +-pi otherwise jumps by 2*pi in
-    the policy's input mid-skill."""
+    into [-pi, pi): a hand turning past +-pi would otherwise jump by 2*pi in a policy's
+    input mid-skill."""
 
     name: str
     feature_names: tuple[str, ...]
