@@ -427,8 +427,7 @@ class ClosedLoopPlanner:
         """The rest of the same abstract plan from where it still applies, else a new plan,
         else (no abstract plan at all) one that first finishes a skill stopped midway. The
         new plans pass over the rest already refined in vain from this state (``tried``):
-        refined again, its failure cost a Doors task another ten samples at the skill's
-        horizon."""
+        refined again from the same state, it would cost as many samples again."""
         tried: tuple[tuple[GroundOperator, ...], ...] = ()
         j = repair_point(needed, world.atoms())
         if j is not None and j < len(steps):
