@@ -54,6 +54,17 @@ def storage_problem(err: BaseException, target: str | os.PathLike | None = None)
     )
 
 
+def nearly_full(path: str | os.PathLike) -> int | None:
+    """The bytes free on the filesystem of ``path`` (a file, or a directory's entry)
+    when under 1 MiB: a write that failed there ran out of space; else None. Libraries
+    that report a failed write without its errno (ffmpeg, rerun) are read so."""
+    try:
+        free = shutil.disk_usage(Path(path).absolute().parent).free
+    except OSError:
+        return None
+    return free if free < 1 << 20 else None
+
+
 def require_free_space(path: str | os.PathLike, needed: int, what: str) -> None:
     """Raise :class:`NotEnoughSpaceError` when the filesystem of ``path`` (a directory,
     or a file in one; or their deepest existing ancestor) has fewer than ``needed``

@@ -65,6 +65,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    # native libraries' own loggers (rerun's, on a full disk) would print lines beside the
+    # one error line this reports; RUST_LOG set by the user still wins
+    os.environ.setdefault("RUST_LOG", "off")
     with _numeric_warnings_held() as held, _terminate_unwinds():
         try:
             code = int(COMMANDS[args.command].run(args) or 0)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import functools
 import os
-import shutil
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
@@ -14,7 +13,7 @@ import imageio_ffmpeg
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
-from bpns.atomic import atomic_path
+from bpns.atomic import atomic_path, nearly_full
 from bpns.env.environment import Environment
 from bpns.errors import BpnsError
 from bpns.execution.rollouts import (
@@ -82,11 +81,8 @@ def _reason(err: OSError, path: Path) -> str:
 
 
 def _space_note(path: Path) -> str:
-    try:
-        free = shutil.disk_usage(path.parent).free
-    except OSError:
-        return ""
-    return f"no space left on the device ({free} bytes free)" if free < 1 << 20 else ""
+    free = nearly_full(path)
+    return "" if free is None else f"no space left on the device ({free} bytes free)"
 
 
 def _check_complete(tmp: Path, n: int, path: Path) -> None:

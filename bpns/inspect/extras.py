@@ -4,7 +4,6 @@ command installs it, in one line."""
 from __future__ import annotations
 
 import importlib
-import os
 from types import ModuleType
 
 from bpns.errors import BpnsError
@@ -18,13 +17,7 @@ class ExtraMissingError(BpnsError, ImportError):
 
 def require(module: str, what: str) -> ModuleType:
     """``module`` imported, or :class:`ExtraMissingError` naming the pip command that
-    installs the extra it belongs to (``what`` says what needs it).
-
-    Rerun's native logger writes its own error lines to stderr (a full disk gave three
-    beside bpns's one); bpns reports a failed recording itself, so that logger is off
-    unless the user set ``RUST_LOG``."""
-    if module == "rerun":
-        os.environ.setdefault("RUST_LOG", "off")
+    installs the extra it belongs to (``what`` says what needs it)."""
     try:
         return importlib.import_module(module)
     except ImportError:

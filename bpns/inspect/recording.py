@@ -24,17 +24,15 @@ from __future__ import annotations
 import errno
 import io
 import os
-import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 from PIL import Image
 
-from bpns.atomic import atomic_path
+from bpns.atomic import atomic_path, nearly_full
 from bpns.env.scene import SceneGeom, SceneTrack
 from bpns.errors import BpnsError
 from bpns.execution.rollouts import REACHED, PlanStep
@@ -100,11 +98,7 @@ def write_recording(
 def _write_failure(out: str | os.PathLike, err: RuntimeError) -> Exception:
     """Why rerun could not write ``out``: a full disk as the OSError a command reports in
     one line (:func:`bpns.atomic.storage_problem`), else :class:`RecordingError`."""
-    try:
-        free = shutil.disk_usage(Path(out).absolute().parent).free
-    except OSError:
-        free = None
-    if free is not None and free < 1 << 20:
+    if nearly_full(out) is not None:
         return OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(out))
     return RecordingError(f"cannot write {out}: rerun's file writer stopped ({err})")
 

@@ -84,9 +84,9 @@ def policy_data(
     lent by operators with the same effects."""
     if shared is None:
         scopes = scope_trajectories(dataset)
-        scope = dataset.bindings[0][: dataset.scope_size] if dataset.bindings else ()
+        params = dataset.operator.parameters[: dataset.scope_size]
         dims = ScopeDims.from_scopes(
-            scopes, config.change_tolerance, dataset.scope_size, types=[o.type for o in scope]
+            scopes, config.change_tolerance, dataset.scope_size, types=[v.type for v in params]
         )
         return scopes, dims, [seg.actions for seg in dataset.segments]
     scopes = [
@@ -97,7 +97,7 @@ def policy_data(
         scopes,
         config.change_tolerance,
         objects=shared.scope,
-        types=[o.type for o in shared.objects[0]] if shared.objects else (),
+        types=[dataset.operator.parameters[i].type for i in shared.scope],
     )
     return scopes, dims, [seg.actions for seg in shared.segments]
 

@@ -209,8 +209,8 @@ class _Skeletons:
         self.deadline = deadline
         self.acc = acc
         self.resume = resume_from is not None
-        self.yielded: set[tuple[GroundOperator, ...]] = set()
         self.skip = set(tried)  # passed over: yielded here or refined by the caller
+        self.yielded = 0
         self.demotions = (
             None if config.demote_refuted is None else RefutedAchievers(config.demote_refuted)
         )
@@ -237,11 +237,11 @@ class _Skeletons:
         )
 
     def next(self) -> AbstractPlan | None:
-        if len(self.yielded) >= self.config.n_abstract:
+        if self.yielded >= self.config.n_abstract:
             return None
         skeleton = next(self._search, None)
         if skeleton is not None:
-            self.yielded.add(skeleton.operators)
+            self.yielded += 1
             self.skip.add(skeleton.operators)
         return skeleton
 

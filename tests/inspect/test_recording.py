@@ -151,14 +151,14 @@ def test_a_recording_rerun_cannot_write_is_one_error_line_and_no_file(
     # RuntimeError; the command says why in one line and leaves no partial file
     import rerun as rr
 
-    from bpns.inspect import recording
+    from bpns import atomic
 
     def dead_writer(self, *args, **kwargs):
         raise RuntimeError("File-writer thread shut down prematurely")
 
     monkeypatch.setattr(rr.RecordingStream, "flush", dead_writer)
     monkeypatch.setattr(
-        recording.shutil, "disk_usage", lambda path: shutil._ntuple_diskusage(1, 1, free)
+        atomic.shutil, "disk_usage", lambda path: shutil._ntuple_diskusage(1, 1, free)
     )
     out = tmp_path / "task0.rrd"
     code = main(
